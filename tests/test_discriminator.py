@@ -1,0 +1,509 @@
+"""Tests for the SAIL discriminator (modules/discriminator.py) and its loss (objectives/discriminator.py)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+import numpy as np
+import pytest
+import torch
+import torch.nn.functional as F
+from tensordict import TensorDict
+from tensordict.nn import TensorDictModule
+from torch import nn
+
+from torchrl_sail import (
+    Discriminator,
+    DiscriminatorLoss,
+    DiscriminatorNet,
+    RunningObsNorm,
+)
+
+
+def _np_stats(x: np.ndarray, eps: float = 1e-2, min_var: float = 1e-2):
+    """Authors' MPI RunningMeanStd: prior sum=0, sumsq=eps, count=eps; var floored."""
+    x = x.reshape(-1, x.shape[-1]).astype(np.float64)
+    s = x.sum(0)
+    sq = eps + (x**2).sum(0)
+    c = eps + x.shape[0]
+    mean = s / c
+    std = np.sqrt(np.maximum(sq / c - mean**2, min_var))
+    return mean, std
+
+
+def _linear_disc(weight, bias=0.0, *, obs_dim=3, act_dim=1, normalize=False):
+    """A discriminator whose logit is the affine map ``weight @ [obs, act] + bias``."""
+    disc = Discriminator(
+        obs_dim, act_dim, num_cells=(), normalize_observations=normalize
+    )
+    with torch.no_grad():
+        disc.net.mlp[0].weight.copy_(torch.tensor([weight], dtype=torch.float32))
+        disc.net.mlp[0].bias.fill_(bias)
+    return disc
+
+
+def _tagged(obs, act, tag):
+    obs = torch.as_tensor(obs, dtype=torch.float32)
+    return TensorDict(
+        observation=obs,
+        action=torch.as_tensor(act, dtype=torch.float32),
+        is_teacher=torch.as_tensor(tag, dtype=torch.bool),
+        batch_size=obs.shape[:-1],
+    )
+
+
+class TestRunningObsNorm:
+    def test_prior(self):
+        norm = RunningObsNorm(3)
+        assert norm.sum.dtype == norm.sumsq.dtype == norm.count.dtype == torch.float64
+        torch.testing.assert_close(norm.mean, torch.zeros(3, dtype=torch.float64))
+        # sumsq/count = 1 and mean = 0 before any update
+        torch.testing.assert_close(norm.std, torch.ones(3, dtype=torch.float64))
+        assert set(norm.state_dict()) == {"sum", "sumsq", "count"}
+
+    def test_hand_computed(self):
+        norm = RunningObsNorm(2)
+        norm.update(torch.tensor([[1.0, 5.0], [3.0, 5.0]]))
+        # count = 2.01, mean = (4, 10) / 2.01
+        # var0 = 10.01/2.01 - (4/2.01)^2, var1 = 50.01/2.01 - (10/2.01)^2
+        c = 2.01
+        mean = [4 / c, 10 / c]
+        std = [math.sqrt(10.01 / c - mean[0] ** 2), math.sqrt(50.01 / c - mean[1] ** 2)]
+        assert norm.mean.tolist() == pytest.approx(mean, abs=1e-12)
+        assert norm.std.tolist() == pytest.approx(std, abs=1e-12)
+        assert norm.std.tolist() == pytest.approx([1.009852, 0.358796], abs=1e-6)
+
+    def test_matches_numpy_over_several_batches(self):
+        norm = RunningObsNorm(3)
+        a = torch.randn(7, 3) * torch.tensor([1.0, 5.0, 0.01]) + torch.tensor(
+            [2.0, -1.0, 1.0]
+        )
+        b = (
+            torch.randn(2, 5, 3) * torch.tensor([1.0, 1.0, 0.01]) + 1.0
+        )  # any leading dims
+        norm.update(a)
+        norm.update(b)
+        allx = np.concatenate([a.numpy(), b.reshape(-1, 3).numpy()])
+        mean, std = _np_stats(allx)
+        np.testing.assert_allclose(norm.mean.numpy(), mean, rtol=1e-12)
+        np.testing.assert_allclose(norm.std.numpy(), std, rtol=1e-10)
+        assert norm.count.item() == pytest.approx(17.01)
+        # third feature is ~1 +- 0.01: its variance (prior row at 0 included) < 1e-2,
+        # so its std is floored at 0.1
+        assert (norm.sumsq / norm.count - norm.mean**2)[2] < 1e-2
+        assert norm.std[2].item() == pytest.approx(0.1)
+        x = torch.randn(4, 3) * 100  # no clipping of the normalised values
+        out = norm(x)
+        assert out.dtype == torch.float32
+        expected = (x.double().numpy() - mean) / std
+        np.testing.assert_allclose(out.numpy(), expected, rtol=1e-5, atol=1e-3)
+        assert out.abs().max() > 100
+
+    def test_std_floor(self):
+        norm = RunningObsNorm(1)
+        norm.update(torch.full((100, 1), 3.0))
+        # var = 900.01/100.01 - (300/100.01)^2 ~ 1e-3 < 1e-2 -> std = 0.1
+        raw_var = 900.01 / 100.01 - (300 / 100.01) ** 2
+        assert 0 < raw_var < 1e-2
+        assert norm.std.item() == pytest.approx(0.1, abs=1e-15)
+        # mean and std are cast to x's dtype (float32) first, as the authors do
+        assert norm(torch.tensor([[3.0]])).item() == pytest.approx(
+            (3.0 - 300 / 100.01) / 0.1, abs=1e-5
+        )
+        assert norm(torch.tensor([[4.0]])).item() == pytest.approx(
+            (4.0 - 300 / 100.01) / 0.1, rel=1e-6
+        )
+
+    def test_forward_does_not_update(self):
+        norm = RunningObsNorm(2)
+        before = {k: v.clone() for k, v in norm.state_dict().items()}
+        norm(torch.randn(5, 2))
+        for k, v in norm.state_dict().items():
+            assert torch.equal(v, before[k])
+
+    def test_bad_shape(self):
+        norm = RunningObsNorm(3)
+        with pytest.raises(ValueError, match=r"trailing shape is \(3,\).*\(4, 2\)"):
+            norm.update(torch.zeros(4, 2))
+        with pytest.raises(ValueError, match="epsilon"):
+            RunningObsNorm(3, epsilon=0.0)
+
+
+class TestDiscriminatorNet:
+    def test_architecture_and_glorot_init(self):
+        net = DiscriminatorNet(17, 6)
+        linears = [m for m in net.mlp if isinstance(m, nn.Linear)]
+        assert [(m.in_features, m.out_features) for m in linears] == [
+            (23, 256),
+            (256, 256),
+            (256, 1),
+        ]
+        assert [type(m) for m in net.mlp if not isinstance(m, nn.Linear)] == [
+            nn.Tanh
+        ] * 2
+        for m in linears:
+            assert torch.count_nonzero(m.bias) == 0
+            bound = math.sqrt(6.0 / (m.in_features + m.out_features))
+            assert m.weight.abs().max() <= bound
+            # uniform(-b, b) has std b/sqrt(3); PyTorch's default would be much smaller
+            if m.weight.numel() > 1000:
+                assert m.weight.std().item() == pytest.approx(
+                    bound / math.sqrt(3), rel=0.05
+                )
+
+    def test_forward_by_hand(self):
+        net = DiscriminatorNet(3, 2, num_cells=(4,))
+        net.obs_norm.update(torch.randn(20, 3) * 3 + 1)
+        obs, act = torch.randn(5, 3), torch.rand(5, 2)
+        mean, std = net.obs_norm.mean.float(), net.obs_norm.std.float()
+        x = torch.cat([(obs - mean) / std, act], -1)
+        w1, b1 = net.mlp[0].weight, net.mlp[0].bias
+        w2, b2 = net.mlp[2].weight, net.mlp[2].bias
+        expected = torch.tanh(x @ w1.T + b1) @ w2.T + b2
+        torch.testing.assert_close(net.features(obs, act), x)
+        torch.testing.assert_close(net(obs, act), expected)
+        assert net(obs, act).shape == (5, 1)
+
+    def test_forward_is_pure(self):
+        net = DiscriminatorNet(3, 1, num_cells=(8,))
+        before = {k: v.clone() for k, v in net.state_dict().items()}
+        with torch.no_grad():
+            net(torch.randn(6, 3) + 10, torch.rand(6, 1))
+        net.train()
+        net(torch.randn(6, 3) + 10, torch.rand(6, 1))
+        for k, v in net.state_dict().items():
+            assert torch.equal(v, before[k]), k
+
+    def test_no_normalisation(self):
+        net = DiscriminatorNet(3, 1, num_cells=(8,), normalize_observations=False)
+        assert net.obs_norm is None
+        obs, act = torch.randn(4, 3) * 7, torch.rand(4, 1)
+        torch.testing.assert_close(net.features(obs, act), torch.cat([obs, act], -1))
+
+    def test_bad_inputs(self):
+        net = DiscriminatorNet(3, 1, num_cells=(8,))
+        with pytest.raises(
+            ValueError, match=r"observations of shape \[\.\.\., 3\].*\(4, 2\)"
+        ):
+            net(torch.zeros(4, 2), torch.zeros(4, 1))
+        with pytest.raises(ValueError, match=r"actions of shape \[\.\.\., 1\]"):
+            net(torch.zeros(4, 3), torch.zeros(4, 2))
+        with pytest.raises(ValueError, match="leading"):
+            net(torch.zeros(4, 3), torch.zeros(5, 1))
+        with pytest.raises(ValueError, match="observation_dim"):
+            DiscriminatorNet(0, 1)
+
+
+class TestDiscriminator:
+    def test_tensordict_face(self):
+        disc = Discriminator(3, 2, num_cells=(8, 8))
+        assert disc.in_keys == ["observation", "action"]
+        assert disc.out_keys == ["d_logit"]
+        assert isinstance(disc.net, DiscriminatorNet)
+        td = TensorDict(
+            observation=torch.randn(2, 5, 3),
+            action=torch.rand(2, 5, 2),
+            batch_size=[2, 5],
+        )
+        out = disc(td)
+        assert out["d_logit"].shape == (2, 5, 1)
+        torch.testing.assert_close(
+            out["d_logit"], disc.net(td["observation"], td["action"])
+        )
+
+    def test_custom_keys(self):
+        disc = Discriminator(
+            3, 2, num_cells=(8,), in_keys=[("a", "obs"), "act"], out_key="logit"
+        )
+        td = TensorDict({("a", "obs"): torch.randn(4, 3), "act": torch.rand(4, 2)}, [4])
+        assert disc(td)["logit"].shape == (4, 1)
+        with pytest.raises(ValueError, match="in_keys must be exactly"):
+            Discriminator(3, 2, in_keys=["observation"])
+
+
+class TestDiscriminatorLoss:
+    def test_hand_computed_linear(self):
+        # logit = 3*obs0 + 4*obs1 (no normalisation): |grad| = 5 everywhere -> GP = 16
+        disc = _linear_disc([3.0, 4.0, 0.0, 0.0])
+        obs = [[1.0, 0, 0], [0.5, -1, 0], [-2, 0.25, 9], [0, 0, 0], [-1, 0, 0]]
+        tag = [True, False, True, False, True]
+        loss_fn = DiscriminatorLoss(disc)
+        out = loss_fn(_tagged(obs, torch.zeros(5, 1), tag))
+        logits = [3 * o[0] + 4 * o[1] for o in obs]  # [3, -2.5, -5, 0, -3]
+        lt = [z for z, t in zip(logits, tag) if t]
+        la = [z for z, t in zip(logits, tag) if not t]
+        softplus = lambda z: math.log1p(math.exp(z))  # noqa: E731
+        sig = lambda z: 1 / (1 + math.exp(-z))  # noqa: E731
+        bce = sum(softplus(-z) for z in lt) / 3 + sum(softplus(z) for z in la) / 2
+        ent = (
+            sum(
+                -sig(z) * math.log(sig(z)) - (1 - sig(z)) * math.log(1 - sig(z))
+                for z in logits
+            )
+            / 5
+        )
+        assert out["loss_discriminator"].item() == pytest.approx(bce, rel=1e-6)
+        assert out["entropy"].item() == pytest.approx(ent, rel=1e-5)
+        assert out["loss_entropy"].item() == pytest.approx(-0.01 * ent, rel=1e-5)
+        assert out["grad_penalty"].item() == pytest.approx(16.0, rel=1e-6)
+        assert out["loss_gradient_penalty"].item() == pytest.approx(160.0, rel=1e-6)
+        # teacher logits [3, -5, -3] -> 1/3 right; agent logits [-2.5, 0]: 0 is not < 0.5
+        assert out["accuracy_teacher"].item() == pytest.approx(1 / 3)
+        assert out["accuracy_agent"].item() == pytest.approx(1 / 2)
+        assert out["d_teacher"].item() == pytest.approx(sum(map(sig, lt)) / 3, rel=1e-6)
+        assert out["d_agent"].item() == pytest.approx(sum(map(sig, la)) / 2, rel=1e-6)
+        assert out["reward_teacher"].item() == pytest.approx(
+            sum(map(softplus, lt)) / 3, rel=1e-6
+        )
+        assert out["reward_agent"].item() == pytest.approx(
+            sum(map(softplus, la)) / 2, rel=1e-6
+        )
+        for k in loss_fn.out_keys:
+            assert out[k].shape == ()
+        for k in ("accuracy_teacher", "entropy", "grad_penalty", "reward_agent"):
+            assert not out[k].requires_grad
+
+    def test_unit_gradient_gives_zero_penalty(self):
+        disc = _linear_disc([0.6, 0.0, 0.0, 0.8])  # |w| = 1
+        out = DiscriminatorLoss(disc)(
+            _tagged(torch.randn(6, 3), torch.rand(6, 1), [1, 0, 1, 0, 1, 0])
+        )
+        assert out["grad_penalty"].item() == pytest.approx(0.0, abs=1e-12)
+
+    def test_against_reference(self):
+        torch.manual_seed(1)
+        disc = Discriminator(3, 2, num_cells=(5,))
+        # move the biases away from Glorot's zeros so every term is exercised
+        with torch.no_grad():
+            for p in disc.parameters():
+                p.add_(0.3 * torch.randn_like(p))
+        loss_fn = DiscriminatorLoss(disc, entropy_coef=0.05, gp_coef=3.0)
+        obs = torch.randn(10, 3) * 2 + 1
+        act = torch.rand(10, 2) * 2 - 1
+        tag = torch.tensor(
+            [1, 0, 0, 1, 1, 0, 1, 1, 0, 1], dtype=torch.bool
+        )  # 6 teacher, 4 agent
+        torch.manual_seed(123)
+        out = loss_fn(_tagged(obs, act, tag))
+        total = sum(v for k, v in out.items() if k.startswith("loss_"))
+        total.backward()
+        grads = [p.grad.clone() for p in disc.parameters()]
+
+        # reference: same normaliser statistics (updated with all 10 rows), plain torch ops
+        mean, std = _np_stats(obs.numpy())
+        np.testing.assert_allclose(disc.net.obs_norm.mean.numpy(), mean, rtol=1e-12)
+        w1, b1 = disc.net.mlp[0].weight, disc.net.mlp[0].bias
+        w2, b2 = disc.net.mlp[2].weight, disc.net.mlp[2].bias
+        x = torch.cat(
+            [
+                (obs - torch.tensor(mean, dtype=torch.float32))
+                / torch.tensor(std, dtype=torch.float32),
+                act,
+            ],
+            -1,
+        )
+
+        def head(z):
+            return torch.tanh(z @ w1.T + b1) @ w2.T + b2
+
+        z = head(x)
+        p = torch.sigmoid(z)
+        bce = -torch.log(p[tag]).mean() - torch.log(1 - p[~tag]).mean()
+        ent = (-p * torch.log(p) - (1 - p) * torch.log(1 - p)).mean()
+        torch.manual_seed(123)
+        eps = torch.rand(4, 1)  # one weight per (teacher_i, agent_i) pair
+        x_hat = eps * x[~tag][:4] + (1 - eps) * x[tag][:4]
+        # analytic input gradient of a 1-hidden-layer tanh net
+        h = torch.tanh(x_hat @ w1.T + b1)
+        g = ((1 - h**2) * w2) @ w1
+        gp = ((g.norm(dim=-1) - 1) ** 2).mean()
+        torch.testing.assert_close(out["loss_discriminator"], bce.detach())
+        torch.testing.assert_close(out["entropy"], ent.detach())
+        torch.testing.assert_close(out["loss_entropy"], -0.05 * ent.detach())
+        torch.testing.assert_close(out["grad_penalty"], gp.detach())
+        torch.testing.assert_close(out["loss_gradient_penalty"], 3.0 * gp.detach())
+
+        disc.zero_grad()
+        (bce - 0.05 * ent + 3.0 * gp).backward()
+        for got, ref in zip(grads, [p.grad for p in disc.parameters()]):
+            torch.testing.assert_close(got, ref)
+        # the penalty really reaches the weights (double backward)
+        assert all(torch.count_nonzero(gr) > 0 for gr in grads)
+
+    def test_interpolation_resampled_each_call(self):
+        disc = Discriminator(3, 1, num_cells=(8,))
+        loss_fn = DiscriminatorLoss(disc, update_obs_norm=False)
+        td = _tagged(torch.randn(8, 3) * 3, torch.rand(8, 1), torch.arange(8) < 4)
+        gp1 = loss_fn(td)["grad_penalty"]
+        gp2 = loss_fn(td)["grad_penalty"]
+        assert gp1 != gp2
+        torch.manual_seed(5)
+        gp3 = loss_fn(td)["grad_penalty"]
+        torch.manual_seed(5)
+        assert loss_fn(td)["grad_penalty"] == gp3
+
+    def test_obs_norm_update_only_in_training_with_all_rows(self):
+        disc = Discriminator(3, 1, num_cells=(8,))
+        loss_fn = DiscriminatorLoss(disc)
+        td = _tagged(torch.randn(6, 3) + 2, torch.rand(6, 1), [1, 1, 0, 0, 0, 1])
+        loss_fn.eval()
+        loss_fn(td)
+        assert disc.net.obs_norm.count.item() == pytest.approx(0.01)
+        loss_fn.train()
+        loss_fn(td)
+        norm = disc.net.obs_norm
+        assert norm.count.item() == pytest.approx(6.01)
+        torch.testing.assert_close(norm.sum, td["observation"].double().sum(0))
+        torch.testing.assert_close(
+            norm.sumsq, 0.01 + td["observation"].double().square().sum(0)
+        )
+        DiscriminatorLoss(disc, update_obs_norm=False)(td)
+        assert norm.count.item() == pytest.approx(6.01)
+
+    def test_input_not_modified_and_no_grad_eval(self):
+        disc = Discriminator(3, 1, num_cells=(8,))
+        loss_fn = DiscriminatorLoss(disc, update_obs_norm=False)
+        td = _tagged(torch.randn(6, 3), torch.rand(6, 1), [1, 0, 1, 0, 1, 0])
+        before = td.clone()
+        torch.manual_seed(3)
+        out = loss_fn(td)
+        assert set(td.keys()) == set(before.keys())
+        assert (td == before).all()
+        torch.manual_seed(3)
+        with torch.no_grad():
+            out_ng = loss_fn(td)
+        for k in loss_fn.out_keys:
+            torch.testing.assert_close(out_ng[k], out[k].detach())
+        assert not out_ng["loss_gradient_penalty"].requires_grad
+
+    def test_time_batch(self):
+        disc = Discriminator(3, 1, num_cells=(8,))
+        loss_fn = DiscriminatorLoss(disc, update_obs_norm=False)
+        tag = torch.zeros(2, 4, dtype=torch.bool)
+        tag[0] = True
+        obs, act = torch.randn(2, 4, 3), torch.rand(2, 4, 1)
+        out = loss_fn(_tagged(obs, act, tag))
+        flat = loss_fn.eval()(
+            _tagged(obs.reshape(8, 3), act.reshape(8, 1), tag.reshape(8))
+        )
+        torch.testing.assert_close(
+            out["loss_discriminator"], flat["loss_discriminator"]
+        )
+
+    def test_schedulable_coefficients(self):
+        disc = _linear_disc([3.0, 4.0, 0.0, 0.0])
+        loss_fn = DiscriminatorLoss(disc)
+        td = _tagged(torch.randn(4, 3), torch.zeros(4, 1), [1, 0, 1, 0])
+        assert isinstance(loss_fn.entropy_coef, torch.Tensor)
+        assert {"entropy_coef", "gp_coef"} <= set(loss_fn.state_dict())
+        loss_fn.entropy_coef = 0.5
+        loss_fn.gp_coef = 2.0
+        out = loss_fn(td)
+        assert out["loss_entropy"].item() == pytest.approx(-0.5 * out["entropy"].item())
+        assert out["loss_gradient_penalty"].item() == pytest.approx(32.0, rel=1e-6)
+        assert loss_fn.gp_coef.dtype == torch.float32
+
+    def test_keys(self):
+        disc = Discriminator(3, 1, num_cells=(8,), in_keys=["obs", "act"])
+        loss_fn = DiscriminatorLoss(disc)
+        assert loss_fn.in_keys == ["obs", "act", "is_teacher"]
+        loss_fn.set_keys(is_teacher=("source", "teacher"))
+        assert loss_fn.in_keys == ["obs", "act", ("source", "teacher")]
+        td = TensorDict(
+            {
+                "obs": torch.randn(4, 3),
+                "act": torch.rand(4, 1),
+                ("source", "teacher"): torch.tensor([True, False] * 2),
+            },
+            [4],
+        )
+        assert loss_fn(td)["loss_discriminator"].shape == ()
+        with pytest.raises(ValueError, match="not an accepted tensordict key"):
+            loss_fn.set_keys(teacher="x")
+        loss_fn.set_keys(is_teacher=None)
+        assert loss_fn.tensor_keys.is_teacher == "is_teacher"
+
+    def test_bad_inputs(self):
+        disc = Discriminator(3, 1, num_cells=(8,))
+        loss_fn = DiscriminatorLoss(disc)
+        td = _tagged(torch.randn(4, 3), torch.rand(4, 1), [1, 0, 1, 0])
+        with pytest.raises(KeyError, match="'is_teacher' not found"):
+            loss_fn(td.exclude("is_teacher"))
+        with pytest.raises(KeyError, match="'action' not found"):
+            loss_fn(td.exclude("action"))
+        with pytest.raises(ValueError, match=r"4 rows with 'is_teacher'=True and 0"):
+            loss_fn(td.set("is_teacher", torch.ones(4, dtype=torch.bool)))
+        with pytest.raises(ValueError, match=r"0 rows with 'is_teacher'=True"):
+            loss_fn(td.set("is_teacher", torch.zeros(4, dtype=torch.bool)))
+        with pytest.raises(TypeError, match="bool tensor.*torch.int64"):
+            loss_fn(td.set("is_teacher", torch.tensor([1, 0, 1, 0])))
+        with pytest.raises(ValueError, match=r"batch shape \(4,\).*\(4, 1\)"):
+            loss_fn(td.set("is_teacher", torch.tensor([[True], [False]] * 2)))
+        # nothing was learnt from the rejected batches
+        assert disc.net.obs_norm.count.item() == pytest.approx(0.01)
+
+    def test_reset_parameters_recursive(self):
+        disc = Discriminator(3, 1, num_cells=(64,))
+        loss_fn = DiscriminatorLoss(disc)
+        with torch.no_grad():
+            for p in disc.parameters():
+                p.fill_(0.5)
+        disc.net.obs_norm.update(torch.ones(4, 3))
+        loss_fn.reset_parameters_recursive()
+        w = disc.net.mlp[0].weight
+        bound = math.sqrt(6.0 / (4 + 64))
+        assert w.abs().max() <= bound and w.abs().max() > 0.8 * bound
+        assert all(
+            torch.count_nonzero(m.bias) == 0 for m in (disc.net.mlp[0], disc.net.mlp[2])
+        )
+        assert disc.net.obs_norm.count.item() == pytest.approx(4.01)
+
+    def test_wrong_discriminator_type(self):
+        with pytest.raises(TypeError, match="got Linear"):
+            DiscriminatorLoss(nn.Linear(4, 1))
+        bad = TensorDictModule(
+            nn.Linear(4, 1), in_keys=["observation"], out_keys=["d_logit"]
+        )
+        with pytest.raises(TypeError, match="TensorDictModule wrapping Linear"):
+            DiscriminatorLoss(bad)
+        # a plain TensorDictModule around a DiscriminatorNet is accepted
+        ok = TensorDictModule(
+            DiscriminatorNet(3, 1, num_cells=(4,)), in_keys=["o", "a"], out_keys=["l"]
+        )
+        assert DiscriminatorLoss(ok).in_keys == ["o", "a", "is_teacher"]
+
+    def test_separates_toy_distributions(self):
+        # authors' 256-256 tanh net; ~1 s on one core
+        disc = Discriminator(3, 1)
+        loss_fn = DiscriminatorLoss(disc)
+        optim = torch.optim.Adam(disc.parameters(), lr=1e-3)
+        tag = torch.arange(256) < 128
+
+        def batch():
+            teacher = torch.randn(128, 4) * 0.5 + 2
+            agent = torch.randn(128, 4) * 0.5 - 2
+            x = torch.cat([teacher, agent])
+            return _tagged(x[:, :3], x[:, 3:], tag)
+
+        for _ in range(200):
+            out = loss_fn(batch())
+            loss = (
+                out["loss_discriminator"]
+                + out["loss_entropy"]
+                + out["loss_gradient_penalty"]
+            )
+            optim.zero_grad()
+            loss.backward()
+            optim.step()
+        loss_fn.eval()
+        out = loss_fn(batch())
+        assert out["accuracy_teacher"] > 0.95
+        assert out["accuracy_agent"] > 0.95
+        assert out["reward_teacher"] > out["reward_agent"]
+        assert out["d_teacher"] > 0.5 > out["d_agent"]
+
+
+if __name__ == "__main__":
+    args, unknown = argparse.ArgumentParser().parse_known_args()
+    pytest.main([__file__, "--capture", "no", "--exitfirst"] + unknown)

@@ -1,0 +1,236 @@
+"""Tests for DiscriminatorReward (envs/discriminator_reward.py)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+import pytest
+import torch
+import torch.nn.functional as F
+from tensordict import TensorDict
+from tensordict.nn import TensorDictModule
+from torch import nn
+from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+from torchrl.data.replay_buffers.samplers import SamplerWithoutReplacement
+from torchrl.envs import Compose, SerialEnv, TransformedEnv
+from torchrl.envs.utils import check_env_specs
+from torchrl.testing.mocking_classes import ContinuousActionVecMockEnv
+
+from torchrl_sail import Discriminator, DiscriminatorLoss, DiscriminatorReward
+
+OBS_DIM, ACT_DIM = 7, 7  # ContinuousActionVecMockEnv
+
+
+def _linear_disc(weight, bias=0.0):
+    """logit = weight @ [obs, act] + bias, no observation normalisation (obs 1-d, act 1-d)."""
+    disc = Discriminator(1, 1, num_cells=(), normalize_observations=False)
+    with torch.no_grad():
+        disc.net.mlp[0].weight.copy_(torch.tensor([weight]))
+        disc.net.mlp[0].bias.fill_(bias)
+    return disc
+
+
+def _transitions(n, obs_dim=3, act_dim=1):
+    return TensorDict(
+        observation=torch.randn(n, obs_dim),
+        action=torch.rand(n, act_dim) * 2 - 1,
+        next=TensorDict(
+            observation=torch.randn(n, obs_dim),
+            reward=torch.arange(n, dtype=torch.float32).unsqueeze(-1),
+            batch_size=[n],
+        ),
+        batch_size=[n],
+    )
+
+
+class TestRewardValues:
+    def test_hand_computed(self):
+        logits = torch.tensor([-20.0, -1.0, 0.0, 1.0, 5.0, 30.0, 200.0])
+        td = TensorDict(
+            observation=logits.unsqueeze(-1), action=torch.zeros(7, 1), batch_size=[7]
+        )
+        out = DiscriminatorReward(_linear_disc([1.0, 0.0]))(td)
+        r = out["next", "reward"]
+        assert r.shape == (7, 1)
+        expected = [math.log1p(math.exp(z)) for z in logits.tolist()]
+        assert r.squeeze(-1).tolist() == pytest.approx(expected, rel=1e-6, abs=1e-12)
+        assert r[2].item() == pytest.approx(math.log(2.0))  # D = 0.5
+        # -log(1 - D) itself overflows where softplus stays finite (no 18.42 cap)
+        naive = -torch.log(1 - torch.sigmoid(logits))
+        assert torch.isinf(naive[-1]) and r[-1].item() == pytest.approx(200.0)
+        finite = torch.isfinite(naive)
+        assert finite.sum() == 5  # logits -20 .. 5
+        torch.testing.assert_close(
+            r.squeeze(-1)[finite], naive[finite], atol=1e-5, rtol=1e-5
+        )
+
+    def test_equals_softplus_of_logit(self):
+        disc = Discriminator(3, 1, num_cells=(16, 16))
+        disc.net.obs_norm.update(torch.randn(50, 3) * 2)
+        td = _transitions(12)
+        out = DiscriminatorReward(disc, keep_logit=True)(td.clone())
+        logit = disc.net(td["observation"], td["action"])
+        assert torch.equal(out["d_logit"], logit.detach())
+        assert torch.equal(out["next", "reward"], F.softplus(logit).detach())
+        p = torch.sigmoid(logit)
+        torch.testing.assert_close(
+            out["next", "reward"], -torch.log(1 - p).detach(), atol=1e-5, rtol=1e-5
+        )
+
+    def test_no_gradients(self):
+        disc = Discriminator(3, 1, num_cells=(8,))
+        td = _transitions(5)
+        td["observation"].requires_grad_(True)
+        out = DiscriminatorReward(disc, keep_logit=True)(td)
+        assert not out["next", "reward"].requires_grad
+        assert not out["d_logit"].requires_grad
+        assert all(p.grad is None for p in disc.parameters())
+
+    def test_keys(self):
+        disc = Discriminator(3, 1, num_cells=(8,))
+        td = _transitions(5)
+        env_reward = td["next", "reward"].clone()
+        obs = td["observation"].clone()
+        out = DiscriminatorReward(disc, out_key="imitation_reward")(td)
+        assert "d_logit" not in out.keys()
+        torch.testing.assert_close(out["next", "reward"], env_reward)
+        torch.testing.assert_close(out["observation"], obs)
+        expected = F.softplus(disc.net(obs, td["action"])).detach()
+        torch.testing.assert_close(out["next", "imitation_reward"], expected)
+        nested = DiscriminatorReward(disc, out_key=("sail", "r"))(td)
+        torch.testing.assert_close(nested["next", "sail", "r"], expected)
+
+    def test_time_batch(self):
+        disc = Discriminator(3, 1, num_cells=(8,))
+        td = TensorDict(
+            observation=torch.randn(2, 6, 3),
+            action=torch.rand(2, 6, 1),
+            batch_size=[2, 6],
+        )
+        out = DiscriminatorReward(disc)(td)
+        assert out["next", "reward"].shape == (2, 6, 1)
+
+    def test_errors(self):
+        with pytest.raises(TypeError, match="got Linear"):
+            DiscriminatorReward(nn.Linear(3, 1))
+        with pytest.raises(TypeError, match="wrapping Linear"):
+            DiscriminatorReward(
+                TensorDictModule(nn.Linear(3, 1), in_keys=["o", "a"], out_keys=["l"])
+            )
+        t = DiscriminatorReward(Discriminator(3, 1, num_cells=(8,)))
+        with pytest.raises(KeyError, match="'action' not found"):
+            t(_transitions(3).exclude("action"))
+
+
+class TestReplayBuffer:
+    def test_rewards_follow_current_discriminator(self):
+        disc = Discriminator(3, 1, num_cells=(16,))
+        disc.train()
+        data = _transitions(10)
+        stored_reward = data["next", "reward"].clone()
+        rb = TensorDictReplayBuffer(
+            storage=LazyTensorStorage(10),
+            sampler=SamplerWithoutReplacement(shuffle=False),
+            batch_size=10,
+        )
+        rb.extend(data)
+        t = DiscriminatorReward(disc)
+        rb.append_transform(t)
+        # append_transform called t.eval(): the transform is in eval mode, D is not
+        assert not t.training
+        assert disc.training and disc.net.training
+
+        s1 = rb.sample()
+        torch.testing.assert_close(
+            s1["next", "reward"],
+            F.softplus(
+                disc.net(data["observation"][s1["index"]], data["action"][s1["index"]])
+            ).detach(),
+        )
+        with torch.no_grad():
+            disc.net.mlp[-1].bias.add_(1.5)
+        s2 = rb.sample()
+        assert torch.equal(s2["index"], s1["index"])
+        assert (s2["next", "reward"] > s1["next", "reward"]).all()
+        torch.testing.assert_close(
+            s2["next", "reward"],
+            F.softplus(disc.net(data["observation"], data["action"])).detach(),
+        )
+        # the storage never receives the imitation reward or the logit
+        stored = rb.storage[:]
+        assert torch.equal(stored["next", "reward"], stored_reward)
+        assert "d_logit" not in stored.keys()
+
+    def test_eval_mode_of_discriminator_also_untouched(self):
+        disc = Discriminator(3, 1, num_cells=(8,))
+        disc.eval()
+        t = DiscriminatorReward(disc)
+        t.train()
+        assert t.training and not disc.training
+        t.eval()
+        disc.train()
+        Compose(t).eval()
+        assert disc.training
+
+    def test_shared_with_loss(self):
+        # the loss trains the very module the transform reads
+        disc = Discriminator(3, 1, num_cells=(8,))
+        loss_fn = DiscriminatorLoss(disc)
+        t = DiscriminatorReward(disc)
+        td = _transitions(8)
+        td["is_teacher"] = torch.arange(8) < 4
+        r0 = t(td.clone())["next", "reward"]
+        optim = torch.optim.Adam(disc.parameters(), lr=1e-2)
+        out = loss_fn(td)
+        (
+            out["loss_discriminator"]
+            + out["loss_entropy"]
+            + out["loss_gradient_penalty"]
+        ).backward()
+        optim.step()
+        r1 = t(td.clone())["next", "reward"]
+        assert not torch.allclose(r0, r1)
+        assert t.clone().discriminator is disc
+
+
+class TestEnv:
+    @pytest.mark.parametrize("out_key", ["reward", "imitation_reward"])
+    def test_single_env(self, out_key):
+        disc = Discriminator(OBS_DIM, ACT_DIM, num_cells=(8,))
+        env = TransformedEnv(
+            ContinuousActionVecMockEnv(), DiscriminatorReward(disc, out_key=out_key)
+        )
+        check_env_specs(env)
+        assert out_key in env.reward_keys
+        assert env.full_reward_spec[out_key].shape == (1,)
+        td = env.rollout(4)
+        expected = F.softplus(disc.net(td["observation"], td["action"])).detach()
+        torch.testing.assert_close(td["next", out_key], expected)
+        assert not td["next", out_key].requires_grad
+        assert "d_logit" not in td.keys(True)
+        if out_key != "reward":
+            assert "reward" in env.reward_keys
+
+    def test_serial_env(self):
+        disc = Discriminator(OBS_DIM, ACT_DIM, num_cells=(8,))
+        env = TransformedEnv(
+            SerialEnv(2, ContinuousActionVecMockEnv),
+            DiscriminatorReward(disc, out_key="imitation_reward"),
+        )
+        check_env_specs(env)
+        td = env.rollout(3)
+        assert td["next", "imitation_reward"].shape == (2, 3, 1)
+        expected = F.softplus(disc.net(td["observation"], td["action"])).detach()
+        torch.testing.assert_close(td["next", "imitation_reward"], expected)
+
+    def test_env_eval_does_not_touch_discriminator(self):
+        disc = Discriminator(OBS_DIM, ACT_DIM, num_cells=(8,))
+        env = TransformedEnv(ContinuousActionVecMockEnv(), DiscriminatorReward(disc))
+        env.eval()
+        assert disc.training
+
+
+if __name__ == "__main__":
+    args, unknown = argparse.ArgumentParser().parse_known_args()
+    pytest.main([__file__, "--capture", "no", "--exitfirst"] + unknown)

@@ -1,0 +1,633 @@
+"""Tests for SAILLoss (objectives/sail.py) and AlphaScheduler (objectives/alpha.py)."""
+from __future__ import annotations
+
+import argparse
+import math
+import warnings
+
+import pytest
+import torch
+from tensordict import TensorDict
+from tensordict.nn import TensorDictModule, TensorDictSequential
+from torchrl.data import Bounded
+from torchrl.modules import MLP, TanhModule, ValueOperator
+from torchrl.objectives import SoftUpdate, TD3Loss
+
+from torchrl_sail import AlphaScheduler, SAILLoss
+
+OBS, ACT, HIDDEN = 3, 2, 8
+GAMMA = 0.9
+SPEC = Bounded(-torch.ones(ACT), torch.ones(ACT), (ACT,))
+
+
+def make_nets():
+    """Actor/critic built like TorchRL's sota TD3 (materialised: no lazy layers)."""
+    actor = TensorDictSequential(
+        TensorDictModule(
+            MLP(
+                in_features=OBS,
+                out_features=ACT,
+                num_cells=[HIDDEN],
+                activation_class=torch.nn.ReLU,
+            ),
+            ["observation"],
+            ["param"],
+        ),
+        TanhModule(["param"], ["action"], spec=SPEC),
+    )
+    critic = ValueOperator(
+        MLP(
+            in_features=OBS + ACT,
+            out_features=1,
+            num_cells=[HIDDEN],
+            activation_class=torch.nn.ReLU,
+        ),
+        in_keys=["action", "observation"],
+    )
+    return actor, critic
+
+
+def make_loss(cls=SAILLoss, *, perturb_targets=True, **kwargs):
+    kwargs.setdefault("loss_function", "l2")
+    actor, critic = make_nets()
+    loss = cls(actor, critic, action_spec=SPEC, **kwargs)
+    loss.make_value_estimator(gamma=GAMMA)
+    SoftUpdate(loss, tau=0.1)  # marks the targets as updated: no no-updater warning
+    if perturb_targets:
+        # Targets start as copies of the online nets; make them differ so a reference that
+        # mixed up online and target parameters would not match.
+        g = torch.Generator().manual_seed(123)
+        for name, buf in loss.named_buffers():
+            if name.startswith("target_") and name.endswith(("weight", "bias")):
+                buf.add_(0.3 * torch.randn(buf.shape, generator=g))
+    return loss
+
+
+def copy_params(dst, src):
+    """Give ``dst`` exactly the (re-sampled) parameters and targets of ``src``."""
+    state = {k: v for k, v in src.state_dict().items() if k != "alpha"}
+    result = dst.load_state_dict(state, strict=False)
+    assert result.unexpected_keys == []
+    assert set(result.missing_keys) <= {"alpha"}
+
+
+def make_batch(n_teacher, n_self, *, seed=0, tag_key="is_teacher"):
+    g = torch.Generator().manual_seed(seed)
+    b = n_teacher + n_self
+    terminated = torch.rand(b, 1, generator=g) < 0.3
+    tag = torch.zeros(b, dtype=torch.bool)
+    tag[:n_teacher] = True
+    return TensorDict(
+        {
+            "observation": torch.randn(b, OBS, generator=g),
+            # some actions at the bounds so the target-action clamp matters
+            "action": (torch.rand(b, ACT, generator=g) * 2.4 - 1.2).clamp(-1, 1),
+            tag_key: tag,
+            ("next", "observation"): torch.randn(b, OBS, generator=g),
+            ("next", "reward"): torch.randn(b, 1, generator=g),
+            ("next", "terminated"): terminated,
+            ("next", "done"): terminated.clone(),
+        },
+        [b],
+    )
+
+
+def q_params(loss):
+    return list(loss.qvalue_network_params.values(True, True))
+
+
+def actor_params(loss):
+    return [
+        p
+        for p in loss.actor_network_params.values(True, True)
+        if isinstance(p, torch.nn.Parameter)
+    ]
+
+
+def grads(out, params):
+    return torch.autograd.grad(out, params, retain_graph=True)
+
+
+def assert_close_all(xs, ys, **kw):
+    assert len(xs) == len(ys)
+    for x, y in zip(xs, ys):
+        torch.testing.assert_close(x, y, **kw)
+
+
+def td3_per_row(loss_sail, batch):
+    """Per-row TD3 (l2) actor and critic terms with the same parameters, no noise."""
+    td3 = make_loss(TD3Loss, reduction="none", policy_noise=0.0, perturb_targets=False)
+    copy_params(td3, loss_sail)
+    plain = batch.exclude("is_teacher", "priority_weight", ("collector", "mask"))
+    out = td3(plain.clone())
+    return out["loss_actor"].detach(), out["loss_qvalue"].detach()
+
+
+# ------------------------------------------------------------------ hand reference
+
+
+def mlp(x, p):
+    """Hand-written forward of MLP(num_cells=[HIDDEN]) = Linear, ReLU, Linear."""
+    h = torch.relu(x @ p["0", "weight"].transpose(-1, -2) + p["0", "bias"].unsqueeze(-2))
+    return h @ p["2", "weight"].transpose(-1, -2) + p["2", "bias"].unsqueeze(-2)
+
+
+def actor_fwd(obs, params):
+    return torch.tanh(mlp(obs, params["module", "0", "module"]))  # bounds are [-1, 1]
+
+
+def q_fwd(obs, act, params):
+    """All Q-nets at once: params are stacked [num_q, ...] -> [num_q, B]."""
+    x = torch.cat([act, obs], -1).expand(params["module", "0", "weight"].shape[0], -1, -1)
+    return mlp(x, params["module"]).squeeze(-1)
+
+
+def reference(loss, batch, alpha, noise):
+    tag = batch["is_teacher"]
+    n_t, n_s = int(tag.sum()), int((~tag).sum())
+    w = torch.where(tag, alpha / max(n_t, 1), (1 - alpha) / max(n_s, 1))
+    obs, act = batch["observation"], batch["action"]
+    nobs = batch["next", "observation"]
+    r = batch["next", "reward"].squeeze(-1)
+    not_term = (~batch["next", "terminated"]).squeeze(-1).float()
+    with torch.no_grad():
+        next_act = (actor_fwd(nobs, loss.target_actor_network_params) + noise).clamp(-1, 1)
+        next_q = q_fwd(nobs, next_act, loss.target_qvalue_network_params).min(0).values
+        y = r + GAMMA * not_term * next_q
+    q = q_fwd(obs, act, loss.qvalue_network_params)  # [2, B]
+    critic = ((q - y) ** 2 * w).sum(-1).sum(0)
+    pi = actor_fwd(obs, loss.actor_network_params)
+    q_pi = q_fwd(obs, pi, loss.qvalue_network_params.detach())  # critic gets no grad
+    actor = -(q_pi[0] * w).sum()
+    return actor, critic
+
+
+# ------------------------------------------------------------------ SAILLoss math
+
+
+def test_alpha0_equals_td3_on_self_rows():
+    sail = make_loss(alpha=0.0, policy_noise=0.0)
+    td3 = make_loss(TD3Loss, policy_noise=0.0, perturb_targets=False)
+    copy_params(td3, sail)
+    batch = make_batch(3, 5)
+    tag = batch["is_teacher"]
+    sail_in = batch.clone()
+    out_s = sail(sail_in)
+    out_t = td3(batch[~tag].exclude("is_teacher"))
+    torch.testing.assert_close(out_s["loss_qvalue"], out_t["loss_qvalue"])
+    torch.testing.assert_close(out_s["loss_actor"], out_t["loss_actor"])
+    assert_close_all(
+        grads(out_s["loss_qvalue"], q_params(sail)),
+        grads(out_t["loss_qvalue"], q_params(td3)),
+    )
+    assert_close_all(
+        grads(out_s["loss_actor"], actor_params(sail)),
+        grads(out_t["loss_actor"], actor_params(td3)),
+    )
+    # the teacher rows really are in the batch, they just weigh nothing
+    assert sail_in["td_error"].shape == (8,)
+    assert float(sail_in["td_error"][:3].sum()) > 0
+
+
+def test_alpha0_without_tag_is_plain_td3():
+    sail = make_loss(alpha=0.0, policy_noise=0.0)
+    td3 = make_loss(TD3Loss, policy_noise=0.0, perturb_targets=False)
+    copy_params(td3, sail)
+    batch = make_batch(0, 6).exclude("is_teacher")
+    out_s, out_t = sail(batch.clone()), td3(batch.clone())
+    torch.testing.assert_close(out_s["loss_qvalue"], out_t["loss_qvalue"])
+    torch.testing.assert_close(out_s["loss_actor"], out_t["loss_actor"])
+    assert math.isnan(float(out_s["pred_value_teacher"]))
+
+
+def test_alpha1_only_depends_on_teacher_rows():
+    loss = make_loss(alpha=1.0)  # default target policy noise, seeded below
+    batch = make_batch(4, 3, seed=1)
+    other = make_batch(4, 3, seed=2)
+    changed_self = batch.clone()
+    changed_self[4:] = other[4:]
+    changed_teacher = batch.clone()
+    changed_teacher[:4] = other[:4]
+
+    def run(td):
+        torch.manual_seed(5)
+        out = loss(td.clone())
+        g = grads(out["loss_qvalue"], q_params(loss))
+        g += grads(out["loss_actor"], actor_params(loss))
+        return out, g
+
+    out_a, g_a = run(batch)
+    out_b, g_b = run(changed_self)
+    torch.testing.assert_close(out_a["loss_qvalue"], out_b["loss_qvalue"])
+    torch.testing.assert_close(out_a["loss_actor"], out_b["loss_actor"])
+    assert_close_all(g_a, g_b)
+    # ... while changing teacher rows does change it (the test can fail)
+    out_c, _ = run(changed_teacher)
+    assert not torch.allclose(out_a["loss_qvalue"], out_c["loss_qvalue"])
+    assert not torch.allclose(out_a["loss_actor"], out_c["loss_actor"])
+
+
+@pytest.mark.parametrize("n_teacher,n_self", [(4, 4), (3, 5)])
+def test_alpha_half_matches_hand_reference(n_teacher, n_self):
+    loss = make_loss(alpha=0.5, policy_noise=0.6, noise_clip=0.5)
+    batch = make_batch(n_teacher, n_self, seed=3)
+    b = n_teacher + n_self
+    torch.manual_seed(11)
+    out = loss(batch.clone())
+    torch.manual_seed(11)  # value_loss draws randn_like(action) before anything else
+    noise = (torch.randn(b, ACT) * 0.6).clamp(-0.5, 0.5)
+    ref_actor, ref_critic = reference(loss, batch, 0.5, noise)
+    torch.testing.assert_close(out["loss_qvalue"], ref_critic)
+    torch.testing.assert_close(out["loss_actor"], ref_actor)
+    assert_close_all(
+        grads(out["loss_qvalue"], q_params(loss)), grads(ref_critic, q_params(loss))
+    )
+    assert_close_all(
+        grads(out["loss_actor"], actor_params(loss)), grads(ref_actor, actor_params(loss))
+    )
+    # the actor loss reaches no critic parameter
+    assert all(g is None for g in torch.autograd.grad(
+        out["loss_actor"], q_params(loss), retain_graph=True, allow_unused=True))
+
+
+@pytest.mark.parametrize(
+    "alpha,n_teacher,n_self",
+    [(0.3, 2, 6), (0.8, 5, 1), (0.5, 1, 7), (1.0, 3, 0), (0.0, 0, 4)],
+)
+def test_unequal_group_sizes_use_per_group_means(alpha, n_teacher, n_self):
+    loss = make_loss(alpha=alpha, policy_noise=0.0)
+    batch = make_batch(n_teacher, n_self, seed=4)
+    actor_rows, critic_rows = td3_per_row(loss, batch)
+    tag = batch["is_teacher"]
+
+    def mix(rows):
+        total = torch.zeros(())
+        if n_teacher:
+            total = total + alpha / n_teacher * rows[tag].sum()
+        if n_self:
+            total = total + (1 - alpha) / n_self * rows[~tag].sum()
+        return total
+
+    out = loss(batch.clone())
+    torch.testing.assert_close(out["loss_qvalue"], mix(critic_rows))
+    torch.testing.assert_close(out["loss_actor"], mix(actor_rows))
+
+
+def test_balanced_batch_with_matching_alpha_is_exactly_td3():
+    # the authors' setting: 128 + 128 rows, alpha = 0.5, plain mean over the batch
+    sail = make_loss(alpha=0.5, policy_noise=0.0)
+    td3 = make_loss(TD3Loss, policy_noise=0.0, perturb_targets=False)
+    copy_params(td3, sail)
+    batch = make_batch(8, 8, seed=6)
+    out_s, out_t = sail(batch.clone()), td3(batch.exclude("is_teacher"))
+    torch.testing.assert_close(out_s["loss_qvalue"], out_t["loss_qvalue"], rtol=1e-6, atol=0)
+    torch.testing.assert_close(out_s["loss_actor"], out_t["loss_actor"], rtol=1e-6, atol=0)
+
+
+def test_reductions_sum_and_none():
+    mean_loss = make_loss(alpha=0.3, policy_noise=0.0)
+    batch = make_batch(2, 4, seed=7)
+    out_mean = mean_loss(batch.clone())
+    for reduction in ("sum", "none"):
+        other = make_loss(
+            alpha=0.3, policy_noise=0.0, reduction=reduction, perturb_targets=False
+        )
+        copy_params(other, mean_loss)
+        out = other(batch.clone())
+        for key in ("loss_qvalue", "loss_actor"):
+            value = out[key]
+            if reduction == "none":
+                # weighted per-row terms, averaging 1 per valid row: they sum to B * mean
+                assert value.shape == (6,)
+                value = value.sum()
+            torch.testing.assert_close(value, 6 * out_mean[key])
+
+
+def test_prioritized_weights_are_normalised_within_groups():
+    alpha = 0.4
+    loss = make_loss(alpha=alpha, policy_noise=0.0)
+    batch = make_batch(3, 4, seed=8)
+    prb = torch.tensor([1.0, 0.5, 0.25, 2.0, 1.0, 1.0, 0.1])
+    batch["priority_weight"] = prb
+    actor_rows, critic_rows = td3_per_row(loss, batch)
+    tag = batch["is_teacher"]
+
+    def mix(rows):
+        t = (prb[tag] * rows[tag]).sum() / prb[tag].sum()
+        s = (prb[~tag] * rows[~tag]).sum() / prb[~tag].sum()
+        return alpha * t + (1 - alpha) * s
+
+    out = loss(batch.clone())
+    torch.testing.assert_close(out["loss_qvalue"], mix(critic_rows))
+    torch.testing.assert_close(out["loss_actor"], mix(actor_rows))
+    # disabled PRB weights: plain per-group means
+    off = make_loss(
+        alpha=alpha,
+        policy_noise=0.0,
+        use_prioritized_weights=False,
+        perturb_targets=False,
+    )
+    copy_params(off, loss)
+    expected = alpha * critic_rows[tag].mean() + (1 - alpha) * critic_rows[~tag].mean()
+    torch.testing.assert_close(off(batch.clone())["loss_qvalue"], expected)
+
+
+def test_masked_rows_are_left_out_of_the_counts():
+    alpha = 0.5
+    loss = make_loss(alpha=alpha, policy_noise=0.0)
+    batch = make_batch(3, 4, seed=9)
+    mask = torch.tensor([True, False, True, True, True, False, False])
+    batch["collector", "mask"] = mask
+    actor_rows, critic_rows = td3_per_row(loss, batch)
+    tag = batch["is_teacher"]
+    expected = (
+        alpha * critic_rows[tag & mask].mean()
+        + (1 - alpha) * critic_rows[~tag & mask].mean()
+    )
+    torch.testing.assert_close(loss(batch.clone())["loss_qvalue"], expected)
+    batch["collector", "mask"] = torch.tensor([False, False, False, True, True, True, True])
+    with pytest.raises(ValueError, match="no \\(valid\\) teacher row"):
+        loss(batch.clone())
+
+
+def test_outputs_and_td_error():
+    loss = make_loss(alpha=0.5)
+    batch = make_batch(3, 5, seed=10)
+    td = batch.clone()
+    out = loss(td)
+    td3_keys = {"loss_actor", "loss_qvalue", "pred_value", "state_action_value_actor",
+                "next_state_value", "target_value"}
+    assert td3_keys | {"alpha", "pred_value_teacher", "pred_value_self"} == set(out.keys())
+    assert set(loss.out_keys) == set(out.keys())
+    assert td["td_error"].shape == (8,)
+    pred = out["pred_value"].mean(0)
+    tag = batch["is_teacher"]
+    torch.testing.assert_close(out["pred_value_teacher"], pred[tag].mean())
+    torch.testing.assert_close(out["pred_value_self"], pred[~tag].mean())
+    assert not out["alpha"].requires_grad
+    loss.alpha = 0.0  # the logged value is a copy, not a view of the buffer
+    assert float(out["alpha"]) == 0.5
+
+
+def test_dispatch_keyword_mode_matches_tensordict_mode():
+    loss = make_loss(alpha=0.3, policy_noise=0.0)
+    batch = make_batch(2, 3, seed=12)
+    out = loss(batch.clone())
+    loss.select_out_keys("loss_actor", "loss_qvalue", "alpha")
+    loss_actor, loss_qvalue, alpha = loss(
+        observation=batch["observation"],
+        action=batch["action"],
+        is_teacher=batch["is_teacher"],
+        next_observation=batch["next", "observation"],
+        next_reward=batch["next", "reward"],
+        next_done=batch["next", "done"],
+        next_terminated=batch["next", "terminated"],
+    )
+    torch.testing.assert_close(loss_actor, out["loss_actor"])
+    torch.testing.assert_close(loss_qvalue, out["loss_qvalue"])
+    assert float(alpha) == pytest.approx(0.3)
+
+
+# ------------------------------------------------------------------ alpha buffer
+
+
+@pytest.mark.parametrize("bad", [-0.1, 1.5, float("nan")])
+def test_alpha_out_of_range_at_construction(bad):
+    actor, critic = make_nets()
+    with pytest.raises(ValueError, match="alpha must be in \\[0, 1\\]"):
+        SAILLoss(actor, critic, action_spec=SPEC, alpha=bad)
+
+
+@pytest.mark.parametrize("bad", ["0.5", True, None])
+def test_alpha_wrong_type_at_construction(bad):
+    actor, critic = make_nets()
+    with pytest.raises(TypeError, match="alpha"):
+        SAILLoss(actor, critic, action_spec=SPEC, alpha=bad)
+
+
+def test_alpha_assignment_is_in_place_and_validated():
+    loss = make_loss(alpha=1)  # an int must still give a float buffer
+    buf = loss.alpha
+    assert buf.dtype == torch.float32
+    loss.alpha = 0.25
+    assert loss.alpha is buf and float(buf) == 0.25
+    loss.alpha = torch.tensor(0.75)
+    assert loss.alpha is buf and float(buf) == 0.75
+    assert "alpha" in dict(loss.named_buffers())
+    bad_values = [(1.2, ValueError), (-1e-3, ValueError), (True, TypeError), ("x", TypeError)]
+    for bad, err in bad_values:
+        with pytest.raises(err, match="alpha"):
+            loss.alpha = bad
+    assert float(loss.alpha) == 0.75
+    with pytest.raises(ValueError, match="alpha"):
+        loss.alpha = torch.tensor([0.1, 0.2])
+    # round-trips through the state dict like any buffer
+    other = make_loss(alpha=0.5, perturb_targets=False)
+    other.load_state_dict(loss.state_dict())
+    assert float(other.alpha) == 0.75
+
+
+def test_loss_function_defaults_to_l2():
+    actor, critic = make_nets()
+    assert SAILLoss(actor, critic, action_spec=SPEC).loss_function == "l2"
+
+
+# ------------------------------------------------------------------ bad batches and keys
+
+
+def test_missing_tag_with_positive_alpha_raises():
+    loss = make_loss(alpha=0.5)
+    with pytest.raises(KeyError, match="is_teacher.*MixedReplayBuffer"):
+        loss(make_batch(2, 2).exclude("is_teacher"))
+
+
+def test_empty_groups_raise():
+    with pytest.raises(ValueError, match="no \\(valid\\) teacher row"):
+        make_loss(alpha=0.5)(make_batch(0, 4))
+    with pytest.raises(ValueError, match="no \\(valid\\) self row"):
+        make_loss(alpha=0.5)(make_batch(4, 0))
+    with pytest.raises(ValueError, match="no \\(valid\\) self row"):
+        make_loss(alpha=0.0)(make_batch(4, 0))
+    # alpha = 1 with only teacher rows and alpha = 0 with only self rows are fine
+    assert torch.isfinite(make_loss(alpha=1.0)(make_batch(4, 0))["loss_qvalue"])
+    assert torch.isfinite(make_loss(alpha=0.0)(make_batch(0, 4))["loss_qvalue"])
+
+
+def test_bad_tag_dtype_and_shape():
+    loss = make_loss(alpha=0.5)
+    batch = make_batch(2, 2)
+    batch["is_teacher"] = batch["is_teacher"].long()
+    with pytest.raises(TypeError, match="bool"):
+        loss(batch)
+    batch = make_batch(2, 2)
+    batch["is_teacher"] = batch["is_teacher"].unsqueeze(-1)  # [B, 1] is accepted
+    assert torch.isfinite(loss(batch)["loss_qvalue"])
+    batch = make_batch(2, 2)
+    batch.set("is_teacher", torch.ones(4, 2, dtype=torch.bool))
+    with pytest.raises(ValueError, match="batch shape"):
+        loss(batch)
+
+
+def test_set_keys_is_teacher():
+    loss = make_loss(alpha=0.3, policy_noise=0.0)
+    ref = loss(make_batch(2, 3, seed=13))
+    loss.set_keys(is_teacher="src")
+    assert "src" in loss.in_keys and "is_teacher" not in loss.in_keys
+    out = loss(make_batch(2, 3, seed=13, tag_key="src"))
+    torch.testing.assert_close(out["loss_qvalue"], ref["loss_qvalue"])
+    with pytest.raises(KeyError, match="'src'"):
+        loss(make_batch(2, 3, seed=13))
+    loss.set_keys(is_teacher=None)  # back to the default
+    assert loss.tensor_keys.is_teacher == "is_teacher"
+    with pytest.raises(ValueError, match="not an accepted tensordict key"):
+        loss.set_keys(teacher_tag="x")
+
+
+def test_soft_update_works_without_warning():
+    actor, critic = make_nets()
+    loss = SAILLoss(actor, critic, action_spec=SPEC, alpha=0.5)
+    loss.make_value_estimator(gamma=GAMMA)
+    with pytest.warns(UserWarning, match="No target network updater"):
+        loss(make_batch(2, 2))
+    actor, critic = make_nets()
+    loss = SAILLoss(actor, critic, action_spec=SPEC, alpha=0.5)
+    loss.make_value_estimator(gamma=GAMMA)
+    updater = SoftUpdate(loss, tau=0.25)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        out = loss(make_batch(2, 2))
+        target = loss.target_qvalue_network_params.clone()
+        with torch.no_grad():
+            for p in q_params(loss):
+                p.add_(1.0)
+        updater.step()
+    new_target = loss.target_qvalue_network_params
+    for key, old in target.items(True, True):
+        # target <- (1 - tau) target + tau source, with source = old target + 1 initially
+        torch.testing.assert_close(new_target.get(key), old + 0.25)
+    assert torch.isfinite(out["loss_qvalue"])
+
+
+# ------------------------------------------------------------------ AlphaScheduler
+
+
+class _Holder:
+    alpha = 1.0
+
+
+def test_scheduler_dynamic_switches_once_at_first_promotion():
+    loss = make_loss(alpha=0.9)
+    sched = AlphaScheduler(loss)
+    assert float(loss.alpha) == 0.5  # the scheduler writes its initial value
+    for frames in (0, 1000, 5000):
+        assert sched.step(frames=frames, num_promoted=0) == 0.5
+        assert sched.switched_at_frame is None
+    assert float(loss.alpha) == 0.5
+    assert sched.step(frames=6000, num_promoted=2) == 0.0
+    assert sched.switched_at_frame == 6000 and float(loss.alpha) == 0.0
+    for frames in (7000, 10**6):
+        assert sched.step(frames=frames, num_promoted=2) == 0.0
+    assert sched.switched_at_frame == 6000
+    # a custom final value
+    other = AlphaScheduler(_Holder(), initial=0.7, final=0.2)
+    assert other.step(frames=10, num_promoted=1) == 0.2 and other.switched_at_frame == 10
+
+
+def test_scheduler_linear_values():
+    holder = _Holder()
+    sched = AlphaScheduler(
+        holder, mode="linear", initial=0.5, final=0.0, anneal_frames=300_000
+    )
+    # alpha(f) = 0.5 - 0.5 * min(f / 3e5, 1)
+    expected = {
+        0: 0.5,
+        60_000: 0.4,
+        150_000: 0.25,
+        299_999: 0.5 / 300_000,
+        300_000: 0.0,
+        10**6: 0.0,
+    }
+    for frames, value in expected.items():
+        assert sched.step(frames=frames, num_promoted=frames // 1000) == pytest.approx(value)
+        assert holder.alpha == pytest.approx(value)
+    assert sched.switched_at_frame is None
+    up = AlphaScheduler(_Holder(), mode="linear", initial=0.2, final=0.6, anneal_frames=100)
+    assert up.step(frames=25, num_promoted=0) == pytest.approx(0.3)
+
+
+def test_scheduler_constant():
+    loss = make_loss(alpha=0.5)
+    sched = AlphaScheduler(loss, mode="constant", initial=0.0)  # SAIL w/o LfD
+    assert float(loss.alpha) == 0.0
+    assert sched.step(frames=100, num_promoted=5) == 0.0
+    keep = AlphaScheduler(_Holder(), mode="constant")  # SAIL w/o adaptation
+    assert keep.step(frames=10**6, num_promoted=10) == 0.5 and keep.switched_at_frame is None
+
+
+def test_scheduler_state_dict_round_trip():
+    sched = AlphaScheduler(_Holder())
+    sched.step(frames=100, num_promoted=0)
+    sched.step(frames=200, num_promoted=1)
+    state = sched.state_dict()
+    saved = torch.load(_roundtrip(state), weights_only=True)
+    holder = _Holder()
+    fresh = AlphaScheduler(holder)
+    assert holder.alpha == 0.5
+    fresh.load_state_dict(saved)
+    assert fresh.alpha == 0.0 and holder.alpha == 0.0 and fresh.switched_at_frame == 200
+    assert fresh.state_dict() == state
+    # progress checks survive the round trip
+    with pytest.raises(ValueError, match="non-decreasing"):
+        fresh.step(frames=150, num_promoted=1)
+    with pytest.raises(ValueError, match="mode"):
+        AlphaScheduler(_Holder(), mode="constant").load_state_dict(state)
+    with pytest.raises(KeyError, match="switched_at_frame"):
+        partial = {k: v for k, v in state.items() if k != "switched_at_frame"}
+        AlphaScheduler(_Holder()).load_state_dict(partial)
+
+
+def _roundtrip(obj):
+    import io
+
+    buf = io.BytesIO()
+    torch.save(obj, buf)
+    buf.seek(0)
+    return buf
+
+
+@pytest.mark.parametrize(
+    "kwargs,err,match",
+    [
+        ({"mode": "anneal"}, ValueError, "mode"),
+        ({"initial": 1.5}, ValueError, "initial"),
+        ({"final": -0.1}, ValueError, "final"),
+        ({"initial": "0.5"}, TypeError, "initial"),
+        ({"mode": "linear"}, ValueError, "anneal_frames"),
+        ({"mode": "linear", "anneal_frames": 0}, ValueError, "anneal_frames"),
+        ({"mode": "linear", "anneal_frames": 1.5}, ValueError, "anneal_frames"),
+        ({"mode": "dynamic", "anneal_frames": 100}, ValueError, "anneal_frames"),
+    ],
+)
+def test_scheduler_validation(kwargs, err, match):
+    with pytest.raises(err, match=match):
+        AlphaScheduler(_Holder(), **kwargs)
+
+
+def test_scheduler_step_validation():
+    with pytest.raises(TypeError, match="has no 'alpha'"):
+        AlphaScheduler(object())
+    sched = AlphaScheduler(_Holder())
+    with pytest.raises(ValueError, match="frames must be non-negative"):
+        sched.step(frames=-1, num_promoted=0)
+    with pytest.raises(TypeError, match="num_promoted"):
+        sched.step(frames=0, num_promoted=1.0)
+    with pytest.raises(TypeError):
+        sched.step(10, 0)  # keyword-only
+    sched.step(frames=10, num_promoted=3)
+    with pytest.raises(ValueError, match="cumulative number of promoted"):
+        sched.step(frames=20, num_promoted=1)
+
+
+if __name__ == "__main__":
+    args, unknown = argparse.ArgumentParser().parse_known_args()
+    pytest.main([__file__, "--capture", "no", "--exitfirst"] + unknown)

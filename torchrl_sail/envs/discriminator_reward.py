@@ -1,0 +1,210 @@
+"""Imitation reward ``-log(1 - D(s, a))`` from the SAIL discriminator, as a TorchRL transform.
+
+In SAIL the critic never sees the environment reward: it is trained on
+``r' = -log(1 - D(s, a))``, recomputed with the *current* discriminator for every
+sampled batch, teacher and agent rows alike (authors' ``get_imitate_reward``). This
+transform is the reward half of the companion pair with
+:class:`~torchrl_sail.DiscriminatorLoss` (as TorchRL's ``RNDTransform`` is to
+``RNDLoss``): both hold the same :class:`~torchrl_sail.Discriminator`; the loss trains
+it and the transform reads it under ``torch.no_grad()``.
+
+Two call paths:
+
+- replay-buffer path (:meth:`DiscriminatorReward.forward`): appended to a buffer with
+  ``rb.append_transform(t)``, or applied to a sampled/mixed batch by hand, it writes
+  ``("next", out_key)`` from the root ``(s, a)``. The reward is computed at sample time
+  with the current D and the storage is never written.
+- environment path (:meth:`DiscriminatorReward._step`): inside a
+  :class:`~torchrl.envs.TransformedEnv`, it writes ``out_key`` into the step's
+  ``"next"`` tensordict from ``(s_t, a_t)``, e.g. for logging the imitation reward of
+  rollouts.
+"""
+
+from __future__ import annotations
+
+import torch
+import torch.nn.functional as F
+from tensordict import TensorDictBase
+from tensordict.nn import TensorDictModule
+from tensordict.utils import NestedKey, unravel_key
+from torchrl.data.tensor_specs import Composite, TensorSpec, Unbounded
+from torchrl.envs.transforms import Transform
+
+from torchrl_sail.modules.discriminator import _check_discriminator
+
+__all__ = ["DiscriminatorReward"]
+
+
+class DiscriminatorReward(Transform):
+    """Writes the SAIL imitation reward ``-log(1 - D(s, a))`` computed by a discriminator.
+
+    With ``ℓ = D_logit(s, a)`` the reward is ``r' = -log(1 - σ(ℓ)) = softplus(ℓ)``,
+    computed as ``softplus`` which is exact and numerically stable. The authors compute
+    ``-log(1 - σ(ℓ) + 1e-8)``, which is capped at ``-log(1e-8) ≈ 18.42`` and slightly
+    biased near ``σ(ℓ) = 1``; ``softplus`` has neither the cap nor the bias (the two
+    agree to ~1e-5 whenever ``σ(ℓ)`` is not within ~1e-4 of 1). ``r'`` is always
+    ``> 0``, equals ``log 2 ≈ 0.693`` at ``D = 0.5`` and is not clipped.
+
+    The reward has the shape of the logit, ``[*batch, 1]``, and never carries
+    gradients (computed under ``torch.no_grad()``).
+
+    **Replay buffer** (:meth:`forward`): reads the root ``(s, a)`` (the discriminator's
+    ``in_keys``) and writes ``("next", out_key)``. Appended with
+    ``rb.append_transform(DiscriminatorReward(disc))``, rewards are recomputed with the
+    current discriminator at every ``rb.sample()``, and the stored data is untouched.
+    With the default ``out_key="reward"`` this overwrites the sampled
+    ``("next", "reward")`` like TorchRL's GAIL example does, so a TD3-style loss reads
+    it without remapping; pass e.g. ``out_key="imitation_reward"`` to keep the env
+    reward and point the loss at ``("next", "imitation_reward")`` instead.
+
+    **Environment** (:meth:`_step`): reads ``(s_t, a_t)`` from the step input and
+    writes ``out_key`` into the ``"next"`` tensordict. When ``out_key`` is not already
+    a reward key of the parent env, an :class:`~torchrl.data.Unbounded` entry shaped
+    like the env reward is added to the reward spec.
+
+    .. warning:: **Train/eval mode.** ``rb.append_transform`` calls ``.eval()`` on the
+        transform (and so would ``env.eval()``). This transform overrides
+        :meth:`train` so that its mode never propagates to the discriminator shared
+        with :class:`~torchrl_sail.DiscriminatorLoss`: appending it to a buffer leaves
+        the discriminator in whatever mode it was.
+
+    .. warning:: **Staleness across processes.** A discriminator copied into env
+        worker processes (``ParallelEnv``, multi-process collectors) is a snapshot that
+        the learner's updates never reach, so rewards computed there go stale. SAIL
+        needs rewards from the *current* D: compute them on the learner at sample time
+        (buffer path). ``transform.clone()`` and :class:`~torchrl.envs.TransformedEnv`
+        in the same process share the discriminator and stay current.
+
+    Args:
+        discriminator (Discriminator): a :class:`~torchrl_sail.Discriminator` (or any
+            :class:`~tensordict.nn.TensorDictModule` whose ``.module`` is a
+            :class:`~torchrl_sail.DiscriminatorNet`), shared with the loss.
+
+    Keyword Args:
+        out_key (NestedKey, optional): reward entry, written under ``"next"``.
+            Defaults to ``"reward"``.
+        keep_logit (bool, optional): buffer path only: also leave the discriminator
+            logit at the root of the output tensordict (under the discriminator's
+            out_key, e.g. ``"d_logit"``). Defaults to ``False``. The env path never
+            writes the logit (it is not part of the env specs).
+
+    Examples:
+        >>> import torch
+        >>> from tensordict import TensorDict
+        >>> from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+        >>> from torchrl_sail import Discriminator, DiscriminatorReward
+        >>> disc = Discriminator(3, 1, num_cells=(16, 16))
+        >>> t = DiscriminatorReward(disc)
+        >>> data = TensorDict(
+        ...     observation=torch.randn(10, 3),
+        ...     action=torch.rand(10, 1),
+        ...     next=TensorDict(reward=torch.zeros(10, 1), batch_size=[10]),
+        ...     batch_size=[10],
+        ... )
+        >>> rb = TensorDictReplayBuffer(storage=LazyTensorStorage(10), batch_size=4)
+        >>> _ = rb.extend(data)
+        >>> _ = rb.append_transform(t)
+        >>> disc.training  # append_transform put the transform, not D, in eval mode
+        True
+        >>> sample = rb.sample()
+        >>> sample["next", "reward"].shape
+        torch.Size([4, 1])
+        >>> bool((sample["next", "reward"] > 0).all()), "d_logit" in sample.keys()
+        (True, False)
+        >>> bool((rb.storage[:]["next", "reward"] == 0).all())  # storage untouched
+        True
+    """
+
+    def __init__(
+        self,
+        discriminator: TensorDictModule,
+        *,
+        out_key: NestedKey = "reward",
+        keep_logit: bool = False,
+    ) -> None:
+        _check_discriminator(discriminator, type(self).__name__)
+        super().__init__(in_keys=list(discriminator.in_keys), out_keys=[out_key])
+        self.discriminator = discriminator
+        self.keep_logit = keep_logit
+
+    @property
+    def out_key(self) -> NestedKey:
+        """The reward key (relative to ``"next"``)."""
+        return self.out_keys[0]
+
+    def train(self, mode: bool = True) -> DiscriminatorReward:
+        """Sets the mode of the transform only, never of the shared discriminator.
+
+        ``rb.append_transform`` calls ``.eval()`` on transforms; propagating it would
+        silently switch the discriminator being trained by
+        :class:`~torchrl_sail.DiscriminatorLoss` to eval mode.
+
+        Args:
+            mode (bool, optional): training mode. Defaults to ``True``.
+        """
+        self.training = mode
+        return self
+
+    def _logit(self, tensordict: TensorDictBase) -> torch.Tensor:
+        for key in self.discriminator.in_keys:
+            if key not in tensordict.keys(include_nested=True):
+                raise KeyError(
+                    f"{type(self).__name__}: key {key!r} not found in the tensordict "
+                    f"(keys: {sorted(tensordict.keys(True, True), key=str)}). The "
+                    f"discriminator reads {self.discriminator.in_keys}."
+                )
+        # a selected (shallow) copy: the discriminator writes its logit there, not
+        # into the caller's tensordict
+        inputs = tensordict.select(*self.discriminator.in_keys)
+        return self.discriminator(inputs).get(self.discriminator.out_keys[0])
+
+    @torch.no_grad()
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        """Writes ``("next", out_key)`` from the root ``(s, a)`` (replay-buffer path).
+
+        Args:
+            tensordict (TensorDictBase): transitions with the discriminator's
+                observation and action keys at the root.
+        """
+        logit = self._logit(tensordict)
+        tensordict.set(unravel_key(("next", self.out_key)), F.softplus(logit))
+        if self.keep_logit:
+            tensordict.set(self.discriminator.out_keys[0], logit)
+        return tensordict
+
+    @torch.no_grad()
+    def _step(
+        self, tensordict: TensorDictBase, next_tensordict: TensorDictBase
+    ) -> TensorDictBase:
+        logit = self._logit(tensordict)
+        next_tensordict.set(self.out_key, F.softplus(logit))
+        return next_tensordict
+
+    def _call(self, next_tensordict: TensorDictBase) -> TensorDictBase:
+        raise RuntimeError(
+            f"{type(self).__name__} needs (s_t, a_t) and is computed in _step; _call "
+            f"(which only sees the next tensordict) is not supported."
+        )
+
+    def transform_reward_spec(self, reward_spec: TensorSpec) -> TensorSpec:
+        out_key = self.out_key
+        if not isinstance(reward_spec, Composite):
+            raise TypeError(
+                f"{type(self).__name__} expects a Composite reward spec, got "
+                f"{type(reward_spec).__name__}."
+            )
+        if out_key in reward_spec.keys(True, True):
+            return reward_spec
+        shape = (*reward_spec.shape, 1)
+        device = reward_spec.device
+        parent = self.parent
+        if parent is not None:
+            for reward_key in parent.reward_keys:
+                if reward_key in reward_spec.keys(True, True):
+                    shape = reward_spec[reward_key].shape
+                    device = reward_spec[reward_key].device
+                    break
+        reward_spec[out_key] = Unbounded(
+            shape=shape, device=device, dtype=torch.float32
+        )
+        return reward_spec

@@ -1,0 +1,339 @@
+"""Discriminator loss of SAIL: BCE + Bernoulli-entropy bonus + gradient penalty.
+
+SAIL trains its discriminator ``D(s, a)`` to tell teacher transitions (label 1) from
+the agent's own transitions (label 0); ``-log(1 - D)`` is then the critic's reward
+(:class:`~torchrl_sail.DiscriminatorReward`). This module reproduces the loss of the
+authors' ``DiscriminatorCalssifier`` (``stable_baselines/gail/adversary.py``):
+
+.. math::
+
+    L = \\overline{\\mathrm{BCE}(\\ell_{agent}, 0)} + \\overline{\\mathrm{BCE}(\\ell_{teacher}, 1)}
+        - c_{ent}\\, \\overline{H(\\ell)} + c_{gp}\\, \\mathrm{GP}
+
+on one *tagged* mixed batch (``"is_teacher"``), and keeps the running observation
+normaliser of the discriminator up to date, as the authors do before every
+discriminator minibatch.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+import torch.nn.functional as F
+from tensordict import TensorDict, TensorDictBase
+from tensordict.nn import dispatch, TensorDictModule
+from tensordict.utils import NestedKey
+from torchrl.objectives import LossModule
+
+from torchrl_sail.modules.discriminator import _check_discriminator
+
+__all__ = ["DiscriminatorLoss"]
+
+
+def _bernoulli_entropy(logits: torch.Tensor) -> torch.Tensor:
+    # Entropy of Bernoulli(sigmoid(x)) written on logits (authors' logit_bernoulli_entropy):
+    # stable for large |x|, unlike -p log p - (1-p) log(1-p).
+    return (1.0 - torch.sigmoid(logits)) * logits - F.logsigmoid(logits)
+
+
+class DiscriminatorLoss(LossModule):
+    """SAIL discriminator loss (authors' GAIL discriminator with entropy bonus and GP).
+
+    The input is **one** mixed batch holding teacher rows and agent rows, told apart by
+    the boolean tag ``"is_teacher"`` (shape = batch shape, no trailing 1). With
+    ``\\ell`` the discriminator logits:
+
+    - ``loss_discriminator = mean_agent BCE(ℓ, 0) + mean_teacher BCE(ℓ, 1)``: two means,
+      one per class, then summed (the authors' formulation), computed from logits with
+      :func:`~torch.nn.functional.binary_cross_entropy_with_logits`;
+    - ``loss_entropy = -entropy_coef * mean_all H(ℓ)``, with the Bernoulli entropy
+      ``H(x) = (1 - σ(x)) x - log σ(x)``: a bonus that keeps D from saturating;
+    - ``loss_gradient_penalty = gp_coef * mean_i (||∂ℓ/∂x̂_i||₂ - 1)²``, where
+      ``x̂_i = ε_i x_agent,i + (1 - ε_i) x_teacher,i`` is taken in the discriminator's
+      *normalised feature space* (:meth:`DiscriminatorNet.features
+      <torchrl_sail.DiscriminatorNet.features>`, i.e. ``[normalise(s), a]``), pairing
+      the i-th teacher row with the i-th agent row for ``i < min(n_teacher, n_agent)``.
+
+    Summing every ``loss_*`` entry gives ``L``.
+
+    .. note:: **Departure from the authors' code (required by our spec).** The
+        authors draw the interpolation weights once, at graph construction, as a
+        fixed per-*feature* vector ``α ~ U(0, 1)^(1, obs_dim + act_dim)`` shared by
+        every sample and every step, which is a bug: the penalty is then only enforced
+        on one fixed affine slice between the two distributions. Here ``ε`` has one
+        uniform weight per sample (shape ``[n, 1]``), resampled at every call, as in
+        WGAN-GP/DAC.
+
+    .. note:: TorchRL's :class:`~torchrl.objectives.GAILLoss` is not reused: it expects
+        *probabilities* (``BCELoss`` on a sigmoid output, less stable than working on
+        logits and unusable for the entropy term written on logits), splits teacher and
+        agent data by key rather than by a row tag, draws independent per-element GP
+        noise for observation and action, and has no entropy bonus nor normaliser
+        update.
+
+    Before the loss is computed, when ``update_obs_norm`` is ``True`` and the loss is
+    in training mode (``loss.train()``, the default), the discriminator's
+    :class:`~torchrl_sail.RunningObsNorm` is updated with **all** observations of the
+    batch (teacher and agent), as the authors do before each discriminator minibatch.
+    In eval mode (``loss.eval()``) the statistics are left untouched.
+
+    The discriminator is held as a regular submodule (as :class:`~torchrl.objectives.RNDLoss`
+    holds its predictor), not converted to functional parameters: it is shared with
+    :class:`~torchrl_sail.DiscriminatorReward` and its normaliser buffers must be
+    updated in place. Optimise ``loss.discriminator.parameters()``; the authors use
+    Adam with lr ``1e-3`` (the TD3 learning rate).
+
+    Args:
+        discriminator (Discriminator): a :class:`~torchrl_sail.Discriminator` (or any
+            :class:`~tensordict.nn.TensorDictModule` whose ``.module`` is a
+            :class:`~torchrl_sail.DiscriminatorNet`). Its ``in_keys`` give the
+            observation and action keys read from the batch.
+
+    Keyword Args:
+        entropy_coef (float, optional): weight of the Bernoulli entropy bonus.
+            Defaults to ``0.01`` (the authors' value). A PyTorch port of SAIL
+            reported that with ``0.01`` the discriminator saturated and that ``0.05``
+            worked; raise it if ``d_teacher``/``d_agent`` reach 1/0 early. Schedulable:
+            ``loss.entropy_coef = 0.05``.
+        gp_coef (float, optional): weight of the gradient penalty. Defaults to
+            ``10.0`` (the authors' value). Schedulable: ``loss.gp_coef = 5.0``.
+        update_obs_norm (bool, optional): update the discriminator's running
+            observation statistics with each training batch. Defaults to ``True``.
+
+    Returns (from ``forward``): a :class:`~tensordict.TensorDict` with empty batch size
+    holding ``loss_discriminator``, ``loss_entropy``, ``loss_gradient_penalty`` and
+    the detached metadata ``accuracy_teacher`` (fraction of teacher rows with
+    ``σ(ℓ) > 0.5``), ``accuracy_agent`` (fraction of agent rows with ``σ(ℓ) < 0.5``),
+    ``d_teacher``/``d_agent`` (mean ``σ(ℓ)``), ``entropy`` (mean ``H``),
+    ``grad_penalty`` (raw GP) and ``reward_teacher``/``reward_agent`` (mean
+    ``softplus(ℓ) = -log(1 - σ(ℓ))``, the critic's reward).
+
+    This class is compatible with non-tensordict based modules too: the entries can
+    be passed as keyword arguments named after :attr:`in_keys` and the outputs come
+    back as a tuple ordered as :attr:`out_keys`.
+
+    Examples:
+        >>> import torch
+        >>> from tensordict import TensorDict
+        >>> from torchrl_sail import Discriminator, DiscriminatorLoss
+        >>> disc = Discriminator(3, 1, num_cells=(32, 32))
+        >>> loss_fn = DiscriminatorLoss(disc)
+        >>> batch = TensorDict(
+        ...     observation=torch.randn(8, 3),
+        ...     action=torch.rand(8, 1) * 2 - 1,
+        ...     is_teacher=torch.arange(8) < 4,
+        ...     batch_size=[8],
+        ... )
+        >>> out = loss_fn(batch)
+        >>> sorted(k for k in out.keys() if k.startswith("loss_"))
+        ['loss_discriminator', 'loss_entropy', 'loss_gradient_penalty']
+        >>> total = sum(v for k, v in out.items() if k.startswith("loss_"))
+        >>> total.backward()
+        >>> disc.net.obs_norm.count.item()  # prior 0.01 + the 8 observations
+        8.01
+        >>> loss_fn.entropy_coef = 0.05  # schedulable coefficient
+        >>> round(loss_fn.entropy_coef.item(), 2)
+        0.05
+
+        Keyword-argument mode:
+
+        >>> loss_d, *_ = loss_fn(
+        ...     observation=torch.randn(8, 3),
+        ...     action=torch.zeros(8, 1),
+        ...     is_teacher=torch.arange(8) % 2 == 0,
+        ... )
+        >>> loss_d.shape
+        torch.Size([])
+    """
+
+    @dataclass
+    class _AcceptedKeys:
+        """Maintains default values for all configurable tensordict keys.
+
+        The observation, action and logit keys are those of the discriminator
+        (its ``in_keys``/``out_keys``).
+
+        Attributes:
+            is_teacher (NestedKey): boolean tag, of the batch shape, that is ``True``
+                on teacher rows. Defaults to ``"is_teacher"``.
+        """
+
+        is_teacher: NestedKey = "is_teacher"
+
+    tensor_keys: _AcceptedKeys
+    default_keys = _AcceptedKeys
+
+    _schedulable_buffers = frozenset({"entropy_coef", "gp_coef"})
+    entropy_coef: torch.Tensor
+    gp_coef: torch.Tensor
+
+    out_keys = [
+        "loss_discriminator",
+        "loss_entropy",
+        "loss_gradient_penalty",
+        "accuracy_teacher",
+        "accuracy_agent",
+        "d_teacher",
+        "d_agent",
+        "entropy",
+        "grad_penalty",
+        "reward_teacher",
+        "reward_agent",
+    ]
+
+    def __init__(
+        self,
+        discriminator: TensorDictModule,
+        *,
+        entropy_coef: float = 0.01,
+        gp_coef: float = 10.0,
+        update_obs_norm: bool = True,
+    ) -> None:
+        _check_discriminator(discriminator, type(self).__name__)
+        self._in_keys = None
+        super().__init__()
+        self.discriminator = discriminator
+        self.register_coeff_buffer("entropy_coef", entropy_coef, dtype=torch.float32)
+        self.register_coeff_buffer("gp_coef", gp_coef, dtype=torch.float32)
+        self.update_obs_norm = update_obs_norm
+
+    @property
+    def net(self):
+        """The :class:`~torchrl_sail.DiscriminatorNet` being trained."""
+        return self.discriminator.module
+
+    def reset_parameters_recursive(self) -> None:
+        """Re-initialises the discriminator weights (Glorot-uniform, zero biases).
+
+        The base implementation only visits networks converted to functional
+        parameters; the discriminator is a plain submodule here, and resetting its
+        ``nn.Linear`` layers one by one would bring back PyTorch's default init. The
+        normaliser statistics are kept.
+        """
+        self.net.reset_parameters()
+
+    def _set_in_keys(self) -> None:
+        keys = [*self.discriminator.in_keys, self.tensor_keys.is_teacher]
+        self._in_keys = list(dict.fromkeys(keys))
+
+    def _forward_value_estimator_keys(self, **kwargs) -> None:
+        # no value estimator: only the input keys depend on tensor_keys
+        self._set_in_keys()
+
+    @property
+    def in_keys(self):
+        if self._in_keys is None:
+            self._set_in_keys()
+        return self._in_keys
+
+    @in_keys.setter
+    def in_keys(self, values):
+        self._in_keys = values
+
+    def _get(self, tensordict: TensorDictBase, key: NestedKey) -> torch.Tensor:
+        value = tensordict.get(key, None)
+        if value is None:
+            raise KeyError(
+                f"{type(self).__name__}: key {key!r} not found in the input tensordict "
+                f"(keys: {sorted(tensordict.keys(True, True), key=str)}). Provide it, or "
+                f"remap the loss keys with set_keys(...) / the discriminator in_keys."
+            )
+        return value
+
+    def _split_rows(
+        self, tensordict: TensorDictBase
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        obs_key, act_key = self.discriminator.in_keys
+        tag_key = self.tensor_keys.is_teacher
+        tag = self._get(tensordict, tag_key)
+        obs = self._get(tensordict, obs_key)
+        act = self._get(tensordict, act_key)
+        if tag.dtype != torch.bool:
+            raise TypeError(
+                f"{type(self).__name__}: {tag_key!r} must be a bool tensor, got "
+                f"{tag.dtype}. Convert it with .bool()."
+            )
+        if tag.shape != obs.shape[:-1]:
+            raise ValueError(
+                f"{type(self).__name__}: {tag_key!r} must have the batch shape "
+                f"{tuple(obs.shape[:-1])} (no trailing 1), got {tuple(tag.shape)}."
+            )
+        n_teacher = int(tag.sum())
+        n_agent = tag.numel() - n_teacher
+        if n_teacher == 0 or n_agent == 0:
+            raise ValueError(
+                f"{type(self).__name__} needs teacher and agent rows in the same batch, "
+                f"got {n_teacher} rows with {tag_key!r}=True and {n_agent} with False."
+            )
+        return obs, act, tag
+
+    @dispatch
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        """Computes the discriminator loss terms and metrics on a tagged mixed batch.
+
+        Args:
+            tensordict (TensorDictBase): batch with the discriminator's observation
+                and action keys and the bool ``is_teacher`` tag. It is not modified.
+        """
+        obs, act, tag = self._split_rows(tensordict)
+        net = self.net
+        if self.update_obs_norm and self.training and net.obs_norm is not None:
+            net.obs_norm.update(obs)
+
+        features = net.features(obs, act)
+        logits = net.head(features)
+        logits_teacher = logits[tag]
+        logits_agent = logits[~tag]
+
+        loss_bce = F.binary_cross_entropy_with_logits(
+            logits_teacher, torch.ones_like(logits_teacher)
+        ) + F.binary_cross_entropy_with_logits(
+            logits_agent, torch.zeros_like(logits_agent)
+        )
+        entropy = _bernoulli_entropy(logits).mean()
+        grad_penalty = self._gradient_penalty(features[tag], features[~tag])
+
+        with torch.no_grad():
+            p_teacher = torch.sigmoid(logits_teacher)
+            p_agent = torch.sigmoid(logits_agent)
+            metadata = {
+                "accuracy_teacher": (p_teacher > 0.5).float().mean(),
+                "accuracy_agent": (p_agent < 0.5).float().mean(),
+                "d_teacher": p_teacher.mean(),
+                "d_agent": p_agent.mean(),
+                "entropy": entropy.detach(),
+                "grad_penalty": grad_penalty.detach(),
+                "reward_teacher": F.softplus(logits_teacher).mean(),
+                "reward_agent": F.softplus(logits_agent).mean(),
+            }
+        return TensorDict(
+            {
+                "loss_discriminator": loss_bce,
+                "loss_entropy": -self.entropy_coef * entropy,
+                "loss_gradient_penalty": self.gp_coef * grad_penalty,
+                **metadata,
+            },
+            batch_size=[],
+        )
+
+    def _gradient_penalty(
+        self, features_teacher: torch.Tensor, features_agent: torch.Tensor
+    ) -> torch.Tensor:
+        n = min(features_teacher.shape[0], features_agent.shape[0])
+        features_teacher = features_teacher[:n].detach()
+        features_agent = features_agent[:n].detach()
+        eps = torch.rand(n, 1, device=features_agent.device, dtype=features_agent.dtype)
+        # enable_grad: the penalty needs d logit / d x_hat even when the loss is only
+        # evaluated (e.g. under torch.no_grad() for logging); the graph through the
+        # gradient is only kept when the caller can backpropagate.
+        create_graph = torch.is_grad_enabled()
+        with torch.enable_grad():
+            mixed = (
+                eps * features_agent + (1 - eps) * features_teacher
+            ).requires_grad_(True)
+            logits = self.net.head(mixed)
+            (grad,) = torch.autograd.grad(
+                logits.sum(), mixed, create_graph=create_graph
+            )
+        return (grad.norm(2, dim=-1) - 1).square().mean()
