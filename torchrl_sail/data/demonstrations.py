@@ -35,6 +35,8 @@ import torch
 from tensordict import TensorDict, TensorDictBase
 from tensordict.utils import NestedKey
 
+from torchrl_sail.data._keys import TRANSITION_KEYS
+
 __all__ = [
     "Demonstrations",
     "check_demonstration_dims",
@@ -47,16 +49,8 @@ FORMAT_TAG = "torchrl_sail.demonstrations"
 FORMAT_VERSION = 1
 SB_FORMAT_TAG = "stable_baselines.ExpertDataset"
 
-# Keys every transition tensordict must carry (contract "Data conventions").
-_REQUIRED_KEYS: tuple[NestedKey, ...] = (
-    "observation",
-    "action",
-    ("next", "observation"),
-    ("next", "reward"),
-    ("next", "done"),
-    ("next", "terminated"),
-    ("next", "truncated"),
-)
+# Keys every transition tensordict must carry (README "Data conventions").
+_REQUIRED_KEYS = TRANSITION_KEYS
 _SB_REQUIRED_KEYS = ("obs", "actions", "rewards", "episode_starts")
 # SAIL's teacher files are named expert_data_no_img_<Env>_scores_<score>_episodes_<n>.npz
 _SB_NAME = re.compile(

@@ -39,18 +39,12 @@ from torchrl.data.replay_buffers.samplers import Sampler
 from torchrl.data.replay_buffers.storages import Storage
 from torchrl.data.replay_buffers.writers import Writer
 
+from torchrl_sail.data._keys import TRANSITION_KEYS
+
 __all__ = ["TopKTeacherReplayBuffer"]
 
 _MASK_KEY = ("collector", "mask")
-_DEFAULT_KEYS: tuple[NestedKey, ...] = (
-    "observation",
-    "action",
-    ("next", "observation"),
-    ("next", "reward"),
-    ("next", "done"),
-    ("next", "terminated"),
-    ("next", "truncated"),
-)
+_DEFAULT_KEYS = TRANSITION_KEYS
 _EVICTIONS = ("topk", "fifo")
 _WRITER_FILE = "teacher_writer.pt"
 

@@ -1,1 +1,6 @@
-"""torchrl_sail.envs."""
+"""Environment transforms: the delayed-reward setting, the time feature, the imitation reward."""
+from torchrl_sail.envs.delayed_reward import DelayedRewardTransform
+from torchrl_sail.envs.discriminator_reward import DiscriminatorReward
+from torchrl_sail.envs.time_feature import TimeFeature
+
+__all__ = ["DelayedRewardTransform", "DiscriminatorReward", "TimeFeature"]

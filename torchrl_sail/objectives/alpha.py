@@ -15,21 +15,11 @@ from __future__ import annotations
 
 from typing import Any
 
+from torchrl_sail.objectives.sail import _check_alpha
+
 __all__ = ["AlphaScheduler"]
 
 _MODES = ("dynamic", "linear", "constant")
-
-
-def _check_unit(name: str, value) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise TypeError(
-            f"AlphaScheduler: {name} must be a float in [0, 1], got {value!r} "
-            f"({type(value).__name__})."
-        )
-    value = float(value)
-    if not 0.0 <= value <= 1.0:  # also rejects NaN
-        raise ValueError(f"AlphaScheduler: {name} must be in [0, 1], got {value}.")
-    return value
 
 
 def _check_count(name: str, value) -> int:
@@ -112,8 +102,8 @@ class AlphaScheduler:
             raise ValueError(
                 f"AlphaScheduler: mode must be one of {_MODES}, got {mode!r}."
             )
-        initial = _check_unit("initial", initial)
-        final = _check_unit("final", final)
+        initial = _check_alpha(initial, where="AlphaScheduler(initial=...)")
+        final = _check_alpha(final, where="AlphaScheduler(final=...)")
         if mode == "linear":
             if (
                 anneal_frames is None
@@ -226,7 +216,7 @@ class AlphaScheduler:
                     f"differs from this scheduler's {key}={getattr(self, key)!r}; build "
                     f"the scheduler with the same configuration before loading."
                 )
-        alpha = _check_unit("alpha", state_dict["alpha"])
+        alpha = _check_alpha(state_dict["alpha"], where="AlphaScheduler.load_state_dict")
         switched = state_dict["switched_at_frame"]
         self._switched_at_frame = None if switched is None else int(switched)
         self._last_frames = int(state_dict["last_frames"])
