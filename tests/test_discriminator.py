@@ -8,7 +8,6 @@ import math
 import numpy as np
 import pytest
 import torch
-import torch.nn.functional as F
 from tensordict import TensorDict
 from tensordict.nn import TensorDictModule
 from torch import nn

@@ -12,7 +12,12 @@ from torchrl_sail.data import (
     save_demonstrations,
     TopKTeacherReplayBuffer,
 )
-from torchrl_sail.envs import DelayedRewardTransform, DiscriminatorReward, TimeFeature
+from torchrl_sail.envs import (
+    DelayedRewardTransform,
+    DiscriminatorReward,
+    make_sail_env,
+    TimeFeature,
+)
 from torchrl_sail.modules import Discriminator, DiscriminatorNet, RunningObsNorm
 from torchrl_sail.objectives import AlphaScheduler, DiscriminatorLoss, SAILLoss
 
@@ -34,5 +39,6 @@ __all__ = [
     "check_demonstration_dims",
     "load_demonstrations",
     "load_sb_demonstrations",
+    "make_sail_env",
     "save_demonstrations",
 ]

@@ -24,7 +24,6 @@ from __future__ import annotations
 import json
 import os
 import re
-import tempfile
 import zipfile
 from collections.abc import Mapping
 from pathlib import Path
@@ -35,6 +34,7 @@ import torch
 from tensordict import TensorDict, TensorDictBase
 from tensordict.utils import NestedKey
 
+from torchrl_sail._io import atomic_save
 from torchrl_sail.data._keys import TRANSITION_KEYS
 
 __all__ = [
@@ -475,36 +475,8 @@ def save_demonstrations(
         "metadata": meta,
         "data": data.detach().cpu().to_dict(),
     }
-    _atomic_torch_save(payload, path)
+    atomic_save(payload, path)
     return path
-
-
-def _atomic_torch_save(obj: Any, path: Path) -> None:
-    directory = path.parent if str(path.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(dir=directory, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            torch.save(obj, f)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
-    # Persist the rename itself; not possible on every platform/filesystem.
-    try:
-        dir_fd = os.open(directory, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(dir_fd)
-    except OSError:
-        pass
-    finally:
-        os.close(dir_fd)
 
 
 def _jsonable(meta: Mapping[str, Any], path: Path) -> dict[str, Any]:

@@ -1,0 +1,81 @@
+"""The SAIL environment stack: a gymnasium task in the paper's delayed-reward setting.
+
+One factory so that the training example, the teacher recorder, the evaluation env and
+users' own pipelines build exactly the same observation layout (with the time feature the
+paper's teacher files carry) and the same trajectory-wise reward.
+"""
+from __future__ import annotations
+
+import difflib
+
+import gymnasium as gym
+from torchrl.envs import Compose, DoubleToFloat, GymEnv, InitTracker, StepCounter, TransformedEnv
+
+from torchrl_sail.envs.delayed_reward import DelayedRewardTransform
+from torchrl_sail.envs.time_feature import TimeFeature
+
+__all__ = ["make_sail_env"]
+
+
+def _check_env_name(name: str) -> None:
+    if name in gym.registry:
+        return
+    close = difflib.get_close_matches(name, list(gym.registry), n=3)
+    hint = f" Did you mean {', '.join(repr(c) for c in close)}?" if close else ""
+    raise ValueError(
+        f"Unknown gymnasium env {name!r}.{hint} SAIL's MuJoCo tasks are e.g. "
+        f"'Hopper-v4', 'Walker2d-v4', 'HalfCheetah-v4', 'Swimmer-v4' (and their -v5)."
+    )
+
+
+def make_sail_env(
+    env_name: str,
+    *,
+    max_episode_steps: int = 1000,
+    time_feature: bool = True,
+    delayed_reward: bool = True,
+    reward_scale: float = 0.1,
+    rounding: str = "floor",
+    device: str = "cpu",
+) -> TransformedEnv:
+    """Builds ``GymEnv(env_name)`` with the SAIL transforms.
+
+    The stack is ``DoubleToFloat -> StepCounter(max_episode_steps) -> InitTracker ->
+    TimeFeature(max_episode_steps) -> DelayedRewardTransform``:
+
+    - ``StepCounter`` truncates at ``max_episode_steps`` (the gymnasium ``TimeLimit`` of
+      the MuJoCo tasks is also 1000) and provides the step count the time feature reads;
+    - ``TimeFeature`` appends ``1 - t/T``, the column of the paper's teacher files;
+    - ``DelayedRewardTransform`` replaces the dense reward by ``floor(0.1 * R)`` at the
+      end of the episode and keeps the dense running return in ``"episode_return"`` for
+      logging and evaluation.
+
+    Args:
+        env_name (str): a registered gymnasium id, e.g. ``"Hopper-v4"``.
+
+    Keyword Args:
+        max_episode_steps (int, optional): episode length ``T``. Defaults to ``1000``.
+        time_feature (bool, optional): append the time feature. Defaults to ``True``.
+        delayed_reward (bool, optional): the delayed-reward setting; ``False`` keeps the
+            dense reward (used to train teachers). Defaults to ``True``.
+        reward_scale (float, optional): ``scale`` of the delayed reward. Defaults to ``0.1``.
+        rounding (str, optional): ``"floor"`` or ``"none"``. Defaults to ``"floor"``.
+        device (str, optional): device of the env outputs. Defaults to ``"cpu"``.
+
+    Raises:
+        ValueError: for an unknown env name (with the closest registered names).
+
+    Examples:
+        >>> from torchrl_sail.envs import make_sail_env
+        >>> env = make_sail_env("Hopper-v4")
+        >>> td = env.rollout(3)
+        >>> td["observation"].shape, td["observation"][:, -1].tolist()
+        (torch.Size([3, 12]), [1.0, 0.9990000128746033, 0.9980000257492065])
+    """
+    _check_env_name(env_name)
+    transforms = [DoubleToFloat(), StepCounter(max_steps=max_episode_steps), InitTracker()]
+    if time_feature:
+        transforms.append(TimeFeature(max_steps=max_episode_steps))
+    if delayed_reward:
+        transforms.append(DelayedRewardTransform(reward_scale, rounding=rounding))
+    return TransformedEnv(GymEnv(env_name, device=device), Compose(*transforms))
