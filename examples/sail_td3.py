@@ -144,14 +144,15 @@ def main(cfg):  # noqa: F821
     collector_kwargs = {}
     if cfg.collector.num_workers > 1:
         collector_kwargs = {"num_collectors": cfg.collector.num_workers, "sync": True}
+    # A resumed run collects only what is left of the budget (possibly nothing).
     collector = Collector(
         lambda: make_env(cfg, cfg.seed + frames) if cfg.collector.num_workers > 1 else env,
         exploration_policy,
         frames_per_batch=cfg.collector.frames_per_batch,
-        total_frames=cfg.collector.total_frames - frames,
+        total_frames=max(cfg.collector.total_frames - frames, cfg.collector.frames_per_batch),
         init_random_frames=max(0, warmup - frames),
         **collector_kwargs,
-    )
+    ) if frames < cfg.collector.total_frames else []
 
     def sail_update() -> dict:
         nonlocal gradient_steps
@@ -244,7 +245,8 @@ def main(cfg):  # noqa: F821
         if frames >= next_ckpt:
             checkpoint()
             next_ckpt += cfg.checkpoint.every_frames
-    collector.shutdown()
+    if collector:
+        collector.shutdown()
     pbar.close()
     checkpoint()
 

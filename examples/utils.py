@@ -316,8 +316,8 @@ def replay_state(rb: TensorDictReplayBuffer) -> dict:
 
 def load_replay_state(rb: TensorDictReplayBuffer, state: dict) -> None:
     if state["data"] is not None:
-        data = TensorDict.from_dict(state["data"])
-        rb.extend(data)
+        n = len(state["data"]["action"])
+        rb.extend(TensorDict.from_dict(state["data"], batch_size=[n]))
     rb.writer.load_state_dict(state["writer"])
 
 

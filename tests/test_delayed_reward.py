@@ -175,6 +175,88 @@ def test_truncation_releases_reward():
     assert td["next", "episode_return"][:, 0].tolist() == [1.0, 3.0, 6.0, 10.0] * 2
 
 
+def test_recommended_stack_with_dense_reward_sum():
+    # the class docstring's stack, verbatim: DoubleToFloat -> StepCounter -> RewardSum
+    # (explicit in_keys, torchrl 0.14.1 needs them with out_keys) -> DelayedRewardTransform
+    env = TransformedEnv(
+        ListRewardEnv([1.0, 2.0, 3.0, 4.0, 5.0, 6.0]),
+        Compose(
+            DoubleToFloat(),
+            StepCounter(max_steps=4),
+            RewardSum(in_keys=["reward"], out_keys=["dense_return"]),
+            DelayedRewardTransform(rounding="none"),
+        ),
+    )
+    check_env_specs(env)
+    td = env.rollout(8, zero_policy, break_when_any_done=False)
+    # episodes cut at 4 steps: dense 1, 2, 3, 4 -> R = 10, delayed 0.1 * 10 = 1
+    assert td["next", "dense_return"][:, 0].tolist() == [1.0, 3.0, 6.0, 10.0] * 2
+    assert td["next", "episode_return"][:, 0].tolist() == [1.0, 3.0, 6.0, 10.0] * 2
+    assert td["next", "reward"][:, 0].tolist() == [0, 0, 0, 1.0] * 2
+
+
+def test_done_setting_transform_after_raises():
+    # StepCounter after the transform truncates once the delayed reward is already 0
+    misplaced = r"StepCounter\(max_steps=4\).*before DelayedRewardTransform"
+    with pytest.raises(ValueError, match=misplaced):
+        Compose(DelayedRewardTransform(), DoubleToFloat(), StepCounter(4))
+    with pytest.raises(ValueError, match=r"StepCounter\(max_steps=4\) before"):
+        Compose(Compose(DelayedRewardTransform()), StepCounter(4))
+    # appended later: caught when the specs are rebuilt, before any step is taken
+    env = TransformedEnv(ListRewardEnv([1.0, 2.0]), DelayedRewardTransform())
+    env.append_transform(StepCounter(max_steps=4))
+    with pytest.raises(ValueError, match=r"StepCounter\(max_steps=4\) before"):
+        env.rollout(2, zero_policy)
+    # a counter that never sets done is fine after it
+    env = TransformedEnv(
+        ListRewardEnv([1.0, 2.0]), Compose(DelayedRewardTransform(), StepCounter())
+    )
+    td = env.rollout(2, zero_policy)
+    assert td["next", "reward"][:, 0].tolist() == [0.0, 0.0]  # floor(0.1 * 3) = 0
+    assert td["next", "step_count"][:, 0].tolist() == [1, 2]
+    Compose(DelayedRewardTransform(), StepCounter(4, update_done=False))
+
+
+def test_double_to_float_after_raises():
+    with pytest.raises(ValueError, match=r"DoubleToFloat\(\).*'episode_return'.*before"):
+        Compose(DelayedRewardTransform(), DoubleToFloat())
+    with pytest.raises(ValueError, match="'episode_return'"):
+        Compose(DelayedRewardTransform(), DoubleToFloat(in_keys=["episode_return"]))
+    # explicit keys that leave the running return alone are accepted
+    Compose(DelayedRewardTransform(), DoubleToFloat(in_keys=["observation"]))
+    # what the check prevents: the running return silently leaves float64
+    env = TransformedEnv(ListRewardEnv([1.0, 2.0]), DelayedRewardTransform())
+    env.append_transform(DoubleToFloat())
+    with pytest.raises(ValueError, match="float64 running return"):
+        env.rollout(2, zero_policy)
+
+
+def test_reset_zeroes_only_flagged_sub_envs():
+    # called directly: inside an env, TorchRL masks the non-reset rows anyway, which
+    # would hide a _reset that zeroes every sub-env
+    t = DelayedRewardTransform(reset_keys=["_reset"])
+    running = torch.tensor([[3.5], [7.0], [-2.0]], dtype=torch.float64)
+    td = TensorDict(
+        episode_return=running.clone(),
+        _reset=torch.tensor([[True], [False], [True]]),
+        batch_size=[3],
+    )
+    out = t._reset(td, TensorDict(batch_size=[3]))
+    assert out["episode_return"][:, 0].tolist() == [0.0, 7.0, 0.0]
+    assert out["episode_return"].dtype == torch.float64
+    # no "_reset" entry means a full reset
+    td = TensorDict(episode_return=running.clone(), batch_size=[3])
+    out = t._reset(td, TensorDict(batch_size=[3]))
+    assert out["episode_return"][:, 0].tolist() == [0.0, 0.0, 0.0]
+    # through a batched env: the partial reset keeps sub-env 1 counting
+    env = TransformedEnv(make_serial(), DelayedRewardTransform())
+    td = env.rollout(2, zero_policy, break_when_any_done=False)
+    state = td[:, -1]["next"].exclude("reward", "done", "terminated")
+    state["_reset"] = torch.tensor([[True], [False], [False]])
+    out = env.reset(state)
+    assert out["episode_return"][:, 0].tolist() == [0.0, 6.0, -18.0]
+
+
 @pytest.mark.parametrize("rounding", ["floor", "none"])
 def test_offline_forward_matches_env(rounding):
     base = make_serial()

@@ -205,20 +205,63 @@ class TestDiscriminator:
             action=torch.rand(2, 5, 2),
             batch_size=[2, 5],
         )
+        disc.net.obs_norm.update(torch.randn(50, 3) * 2 + 1)
         out = disc(td)
         assert out["d_logit"].shape == (2, 5, 1)
-        torch.testing.assert_close(
-            out["d_logit"], disc.net(td["observation"], td["action"])
-        )
+        # the architecture by hand: normalise s, concat (s, a), tanh MLP, linear head
+        norm = disc.net.obs_norm
+        obs = ((td["observation"].double() - norm.mean) / norm.std).float()
+        h = torch.cat([obs, td["action"]], -1)
+        linears = [m for m in disc.net.mlp.modules() if isinstance(m, nn.Linear)]
+        assert len(linears) == 3
+        for layer in linears[:-1]:
+            h = torch.tanh(h @ layer.weight.T + layer.bias)
+        expected = h @ linears[-1].weight.T + linears[-1].bias
+        torch.testing.assert_close(out["d_logit"], expected.detach())
 
     def test_custom_keys(self):
         disc = Discriminator(
-            3, 2, num_cells=(8,), in_keys=[("a", "obs"), "act"], out_key="logit"
+            3,
+            2,
+            num_cells=(),
+            normalize_observations=False,
+            in_keys=[("a", "obs"), "act"],
+            out_key="logit",
         )
-        td = TensorDict({("a", "obs"): torch.randn(4, 3), "act": torch.rand(4, 2)}, [4])
-        assert disc(td)["logit"].shape == (4, 1)
+        with torch.no_grad():
+            disc.net.mlp[0].weight.copy_(torch.tensor([[1.0, 2.0, 3.0, 4.0, 5.0]]))
+            disc.net.mlp[0].bias.fill_(0.5)
+        td = TensorDict(
+            {
+                ("a", "obs"): torch.tensor([[1.0, 0.0, 0.0], [0.0, 1.0, -1.0]]),
+                "act": torch.tensor([[0.5, -0.5], [1.0, 0.0]]),
+            },
+            [2],
+        )
+        # 1 + (2 - 2.5) + 0.5 = 1.0 and (2 - 3) + 4 + 0.5 = 3.5
+        assert disc(td)["logit"][:, 0].tolist() == [1.0, 3.5]
+        assert "d_logit" not in td.keys()
         with pytest.raises(ValueError, match="in_keys must be exactly"):
             Discriminator(3, 2, in_keys=["observation"])
+
+    def test_observation_dtype_must_match_parameters(self):
+        disc = Discriminator(3, 2, num_cells=(8,))
+        td = TensorDict(
+            observation=torch.randn(4, 3, dtype=torch.float64),
+            action=torch.rand(4, 2),
+            batch_size=[4],
+        )
+        # float64 MuJoCo observations without DoubleToFloat(): a clear error, no cast
+        with pytest.raises(TypeError, match=r"torch\.float64.*torch\.float32.*DoubleToFloat"):
+            disc(td)
+        with pytest.raises(TypeError, match="DoubleToFloat"):
+            disc.net.features(td["observation"], td["action"])
+        # a float64 discriminator takes float64 observations (and refuses float32 ones)
+        disc64 = Discriminator(3, 2, num_cells=(8,)).double()
+        assert disc64.net.dtype == torch.float64
+        assert disc64(td.clone())["d_logit"].dtype == torch.float64
+        with pytest.raises(TypeError, match=r"torch\.float32 but .* torch\.float64"):
+            disc64.net(td["observation"].float(), td["action"])
 
 
 class TestDiscriminatorLoss:

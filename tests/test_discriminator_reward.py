@@ -110,6 +110,11 @@ class TestRewardValues:
         )
         out = DiscriminatorReward(disc)(td)
         assert out["next", "reward"].shape == (2, 6, 1)
+        expected = F.softplus(disc.net(td["observation"], td["action"])).detach()
+        torch.testing.assert_close(out["next", "reward"], expected)
+        # every (batch, time) entry is its own transition: row by row gives the same
+        row = F.softplus(disc.net(td["observation"][1, 4], td["action"][1, 4])).detach()
+        torch.testing.assert_close(out["next", "reward"][1, 4], row)
 
     def test_errors(self):
         with pytest.raises(TypeError, match="got Linear"):
@@ -223,6 +228,25 @@ class TestEnv:
         assert td["next", "imitation_reward"].shape == (2, 3, 1)
         expected = F.softplus(disc.net(td["observation"], td["action"])).detach()
         torch.testing.assert_close(td["next", "imitation_reward"], expected)
+
+    def test_reward_spec_dtype_follows_discriminator(self):
+        env = TransformedEnv(
+            ContinuousActionVecMockEnv(dtype=torch.float64),
+            DiscriminatorReward(
+                Discriminator(OBS_DIM, ACT_DIM, num_cells=(8,)).double(),
+                out_key="imitation_reward",
+            ),
+        )
+        assert env.full_reward_spec["imitation_reward"].dtype == torch.float64
+        check_env_specs(env)
+        assert env.rollout(2)["next", "imitation_reward"].dtype == torch.float64
+        env = TransformedEnv(
+            ContinuousActionVecMockEnv(),
+            DiscriminatorReward(
+                Discriminator(OBS_DIM, ACT_DIM, num_cells=(8,)), out_key="imitation_reward"
+            ),
+        )
+        assert env.full_reward_spec["imitation_reward"].dtype == torch.float32
 
     def test_env_eval_does_not_touch_discriminator(self):
         disc = Discriminator(OBS_DIM, ACT_DIM, num_cells=(8,))

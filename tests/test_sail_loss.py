@@ -468,6 +468,34 @@ def test_bad_tag_dtype_and_shape():
         loss(batch)
 
 
+def test_truncated_rows_bootstrap_unless_done_is_terminal():
+    # what load_sb_demonstrations documents for its approximated final next observation:
+    # at a truncation (done, not terminated) the default target reads it, and with
+    # set_keys(terminated="done") (the authors' convention) it does not
+    batch = make_batch(2, 2, seed=5)
+    batch["next", "terminated"] = torch.zeros(4, 1, dtype=torch.bool)
+    batch["next", "done"] = torch.ones(4, 1, dtype=torch.bool)
+    batch["next", "truncated"] = torch.ones(4, 1, dtype=torch.bool)
+    moved = batch.clone()
+    moved["next", "observation"] = moved["next", "observation"] + 5.0
+    loss = make_loss(alpha=0.5, policy_noise=0.0)
+    assert loss(batch)["loss_qvalue"] != loss(moved)["loss_qvalue"]
+    loss.set_keys(terminated="done")
+    torch.testing.assert_close(
+        loss(batch)["loss_qvalue"], loss(moved)["loss_qvalue"], rtol=0, atol=0
+    )
+
+
+def test_in_keys_order_is_td3_then_tag():
+    # a set-based merge made this order depend on PYTHONHASHSEED
+    td3 = make_loss(TD3Loss)
+    loss = make_loss()
+    assert loss.in_keys == [*td3.in_keys, "is_teacher"]
+    assert len(set(loss.in_keys)) == len(loss.in_keys)
+    loss.set_keys(is_teacher="src")
+    assert loss.in_keys == [*td3.in_keys, "src"]
+
+
 def test_set_keys_is_teacher():
     loss = make_loss(alpha=0.3, policy_noise=0.0)
     ref = loss(make_batch(2, 3, seed=13))

@@ -380,6 +380,16 @@ def test_extend_carries_unfinished_episodes_across_batches():
     assert codes_of(rb.transitions()) == [(2, t) for t in range(5)]  # B, stitched whole
 
 
+def test_empty_extend_keeps_the_episode_in_progress():
+    traj = make_traj(3.0, 4, code=1)
+    rb = TopKTeacherReplayBuffer(k=2, max_trajectory_length=8)
+    rb.extend(traj[:2])
+    rb.extend(traj[2:2])  # zero steps
+    rb.extend(traj[2:])
+    assert rb.num_promoted == 1
+    assert codes_of(rb.transitions()) == [(1, t) for t in range(4)]
+
+
 def test_extend_padded_requires_finished_rows():
     rb = TopKTeacherReplayBuffer(k=2, max_trajectory_length=8)
     padded = torch.stack([make_traj(5.0, 3, code=1), make_traj(0.0, 3, code=2, finished=False)])
@@ -558,6 +568,50 @@ def test_state_dict_round_trip(eviction):
     a = rb.sample()
     torch.manual_seed(8)
     assert (a == fresh.sample()).all()
+
+
+@pytest.mark.parametrize("eviction", ["topk", "fifo"])
+def test_state_dict_mid_episode_completes_like_uninterrupted(eviction):
+    # stream 0: A (7 steps, r=6); stream 1: B (4 steps, r=2) then C (3 steps, r=9)
+    s0 = make_traj(6.0, 7, code=1)
+    s1 = torch.cat([make_traj(2.0, 4, code=2), make_traj(9.0, 3, code=3)])
+    data = torch.stack([s0, s1])  # [2, 7], time last
+
+    def first_part(rb):
+        rb.add_demonstrations(make_traj(1.0, 5, code=0))
+        rb.extend(data[:, :2])  # A and B unfinished
+        rb.extend(data[:, 2:3])  # still unfinished: two pending chunks per stream
+        rb.add(data[:, 3])  # B ends; A now has 4 steps pending in 3 chunks
+        rb.add(data[:, 4])  # A: 5 steps pending, C: 1
+
+    def second_part(rb):
+        rb.add(data[:, 5])
+        rb.extend(data[:, 6:])  # A and C end at the same step (stream order: A, C)
+
+    reference = _build(eviction)
+    first_part(reference)
+    second_part(reference)
+
+    rb = _build(eviction)
+    first_part(rb)
+    assert rb.num_offered == 1  # only B finished before the checkpoint
+    buffer = io.BytesIO()
+    torch.save(rb.state_dict(), buffer)
+    buffer.seek(0)
+    fresh = _build(eviction)
+    fresh.load_state_dict(torch.load(buffer, weights_only=True))
+    assert _state(fresh) == _state(rb)
+    second_part(fresh)
+    assert _state(fresh) == _state(reference)
+
+    # by hand: B (2 > C=1), A (6 > 1) and C (9 > 1) are all promoted, A and C whole
+    assert fresh.window == [2.0, 6.0, 9.0] and fresh.num_promoted == 3
+    codes = codes_of(fresh.transitions())
+    expected = [(2, t) for t in range(4)] + [(1, t) for t in range(7)]
+    expected += [(3, t) for t in range(3)]
+    if eviction == "fifo":  # the ring keeps the demonstration; top-3 evicted it
+        expected = [(0, t) for t in range(5)] + expected
+    assert sorted(codes) == sorted(expected)
 
 
 def test_load_state_dict_config_mismatch():

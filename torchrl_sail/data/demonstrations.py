@@ -136,9 +136,20 @@ def load_sb_demonstrations(
 
     The true final next state of an episode was not recorded. It is approximated by the
     last observation with the time column advanced to ``1 - (t + 1)/max_episode_steps``
-    (unchanged when the file has no time feature). That value is never bootstrapped from
-    as long as ``done`` is treated as terminal, which is what the authors do for teacher
-    and agent data alike (no bootstrapping at truncation either).
+    (unchanged when the file has no time feature). Whether a TD target reads this
+    approximation depends on how the episode ended and on the loss:
+
+    - terminated episodes (``terminated=True``): never bootstrapped from;
+    - truncated episodes (full ``max_episode_steps``: ``terminated=False``,
+      ``truncated=True``): :class:`~torchrl_sail.SAILLoss` and TorchRL's ``TD3Loss``
+      bootstrap unless ``("next", "terminated")`` is set, so by default their target
+      *does* use the approximated next observation. It is never bootstrapped from only
+      when the loss treats ``done`` as terminal, ``loss.set_keys(terminated="done")``:
+      the authors' convention (``done=1`` at time-limit truncation, for teacher and
+      agent data alike), which the SAIL example uses.
+
+    The flags are kept as recorded (a time-limit end is ``truncated``, not
+    ``terminated``); whether truncation is terminal is the loss's choice.
 
     Args:
         path: the ``.npz`` file.
@@ -282,7 +293,8 @@ def load_sb_demonstrations(
     next_obs = torch.empty_like(obs_t)
     next_obs[:-1] = obs_t[1:]
     last_t = torch.as_tensor(last)
-    # Approximate final next states (see docstring): never bootstrapped from.
+    # Approximate final next states (see docstring): read by a TD target only for
+    # truncated episodes, and only when the loss does not treat done as terminal.
     next_obs[last_t] = obs_t[last_t]
     if time_feature:
         next_obs[last_t, -1] = torch.as_tensor(
@@ -324,8 +336,10 @@ def load_sb_demonstrations(
         "file_keys": sorted(arrays),
         "next_observation": (
             "obs[t+1] within episodes; last step of an episode: copy of the last "
-            "observation (time feature advanced), an approximation never bootstrapped "
-            "from since done=True"
+            "observation (time feature advanced), an approximation. Never bootstrapped "
+            "from after a termination; after a truncation (terminated=False, "
+            "truncated=True) SAILLoss/TD3Loss bootstrap from it by default, and never "
+            "with loss.set_keys(terminated='done') (the authors' convention)"
         ),
     }
     match = _SB_NAME.search(path.stem)

@@ -74,6 +74,19 @@ class MixedReplayBuffer:
     their sub-keys) and minus ``tag_key`` (always rewritten). Concatenation needs identical
     key sets, and a stray mask from one buffer would be read by the loss auto-mask.
 
+    Limitation, no prioritized replay: ``"priority_weight"`` and ``"index"`` are dropped
+    from both halves (with the default ``keys=None``). They are written per buffer and
+    differ between buffers (a ``[B]`` vs ``[B, 2]`` index, weights only on prioritized
+    buffers), so they cannot be concatenated, and without each buffer's own ``"index"``
+    the mixed batch cannot route TD errors back to ``update_priority``. Batches from
+    this class therefore never reach :class:`~torchrl_sail.SAILLoss`'s prioritized-weight
+    path: every row has weight 1, even when a half comes from a
+    :class:`~torchrl.data.TensorDictPrioritizedReplayBuffer` (naming
+    ``"priority_weight"`` in ``keys=`` is not supported either). ``SAILLoss`` still
+    accepts ``"priority_weight"`` (normalised within each group) in batches you build
+    yourself: sample the buffers directly, concatenate, write the tag, and call each
+    buffer's ``update_priority`` with its own ``"index"``.
+
     Any TorchRL replay buffer whose ``sample(batch_size)`` returns a flat ``[batch_size]``
     tensordict of transitions works on either side (e.g. a
     :class:`~torchrl.data.TensorDictReplayBuffer`, or the project's

@@ -104,7 +104,10 @@ class _TeacherWriter(Writer):
         self.num_offered = 0
         self.num_promoted = 0
         self.num_demonstrations = 0
-        self._pending: dict[int, TensorDictBase] = {}
+        # stream -> chunks of its unfinished episode (and their total length): chunks are
+        # concatenated only when the episode ends, so per-step add() stays O(1) per step.
+        self._pending: dict[int, list[TensorDictBase]] = {}
+        self._pending_len: dict[int, int] = {}
         self._pending_streams = 0
         self._valid_cache: torch.Tensor | None = None
         if empty_write_count or not hasattr(self, "_write_count"):
@@ -139,8 +142,8 @@ class _TeacherWriter(Writer):
             "write_count": self._write_count,
             "pending_streams": self._pending_streams,
             "pending": [
-                (stream, td.shape[0], td.to_dict())
-                for stream, td in sorted(self._pending.items())
+                (stream, self._pending_len[stream], self.pending_episode(stream).to_dict())
+                for stream in sorted(self._pending)
             ],
         }
 
@@ -171,8 +174,11 @@ class _TeacherWriter(Writer):
         self._write_count = int(state_dict["write_count"])
         self._pending_streams = int(state_dict["pending_streams"])
         self._pending = {
-            int(stream): TensorDict(data, batch_size=[int(length)])
+            int(stream): [TensorDict(data, batch_size=[int(length)])]
             for stream, length, data in state_dict["pending"]
+        }
+        self._pending_len = {
+            int(stream): int(length) for stream, length, _ in state_dict["pending"]
         }
         self._valid_cache = None
 
@@ -185,6 +191,17 @@ class _TeacherWriter(Writer):
         self.load_state_dict(torch.load(Path(path) / _WRITER_FILE, weights_only=True))
 
     # -------------------------------------------------------------- queries
+    def pending_episode(self, stream: int) -> TensorDictBase:
+        """The unfinished episode of ``stream`` as one ``[T]`` tensordict."""
+        chunks = self._pending[stream]
+        return chunks[0] if len(chunks) == 1 else torch.cat(chunks, 0)
+
+    def clear_pending(self) -> None:
+        """Forgets every unfinished episode."""
+        self._pending = {}
+        self._pending_len = {}
+        self._pending_streams = 0
+
     @property
     def threshold(self) -> float:
         return self._window[0] if self._window else -math.inf
@@ -753,7 +770,9 @@ class TopKTeacherReplayBuffer(TensorDictReplayBuffer):
         ``data`` is one transition (``batch_size=[]``, a single stream) or one step of
         ``B`` environments (``batch_size=[B]``, ``B`` streams), as a collector with
         ``extend_buffer=False`` writes it. Equivalent to ``extend(data.unsqueeze(-1))``:
-        an episode is offered once its transition with ``done_key`` set arrives.
+        an episode is offered once its transition with ``done_key`` set arrives. The
+        steps of an unfinished episode are kept as a list of chunks and concatenated
+        once, when it ends, so the cost per step does not grow with the episode length.
         """
         if not isinstance(data, TensorDictBase) or data.batch_dims > 1:
             raise ValueError(
@@ -761,6 +780,10 @@ class TopKTeacherReplayBuffer(TensorDictReplayBuffer):
                 "batch_size=[] or [num_envs]); use extend()/offer() for trajectories, got "
                 f"{type(data).__name__} with shape {tuple(getattr(data, 'shape', ()))}."
             )
+        if self._transform is None or not len(self._transform):
+            # Drop the keys that are not stored before reshaping (the transform, if any,
+            # must see the full step).
+            data = data.select(*self._needed_keys, _MASK_KEY, strict=False)
         return self.extend(data.unsqueeze(-1))
 
     def __setitem__(self, index, value) -> None:
@@ -772,8 +795,7 @@ class TopKTeacherReplayBuffer(TensorDictReplayBuffer):
 
     def clear_unfinished(self) -> None:
         """Drops the unfinished episode tails kept between two :meth:`extend` calls."""
-        self._teacher_writer._pending = {}
-        self._teacher_writer._pending_streams = 0
+        self._teacher_writer.clear_pending()
 
     # ------------------------------------------------------------ helpers
     def _ensure_init(self) -> None:
@@ -789,9 +811,9 @@ class TopKTeacherReplayBuffer(TensorDictReplayBuffer):
         if self._transform is not None and len(self._transform):
             td = self._transform.inv(td)
         mask = td.get(_MASK_KEY, None)
-        present = set(td.keys(include_nested=True, leaves_only=True))
         for key in self._needed_keys:
-            if key not in present:
+            # direct lookups: listing every key costs more than the rest of a per-step add()
+            if td.get(key, None) is None:
                 raise KeyError(
                     f"The trajectory has no entry {_key_str(key)}, which the teacher buffer "
                     f"needs (stored keys: {[_key_str(k) for k in self._stored_keys]}, "
@@ -839,7 +861,11 @@ class TopKTeacherReplayBuffer(TensorDictReplayBuffer):
         for end in ends:
             segments.append(stream[start:end])
             start = end
-        tail = stream[start:] if start < length else None
+        if start == 0:
+            # No done in the stream (every step of a per-step add()): skip the indexing.
+            tail = stream if length else None
+        else:
+            tail = stream[start:] if start < length else None
         return segments, tail
 
     def _trajectory_reward(self, trajectory: TensorDictBase) -> float:
@@ -887,25 +913,39 @@ class TopKTeacherReplayBuffer(TensorDictReplayBuffer):
             )
         # (end time in this batch, stream, trajectory): offered in the order they finish
         finished: list[tuple[int, int, TensorDictBase]] = []
-        tails: dict[int, TensorDictBase] = {}
+        tails: dict[int, list[TensorDictBase]] = {}
+        tail_lens: dict[int, int] = {}
         for b, stream in enumerate(streams):
-            offset = 0
-            pending = writer._pending.get(b)
-            if pending is not None:
-                offset = pending.shape[0]
-                stream = torch.cat([pending, stream], 0)
+            chunks = writer._pending.get(b, [])
+            pending_len = writer._pending_len.get(b, 0)
             segments, tail = self._split(stream)
-            end = 0
-            for segment in segments:
-                end += segment.shape[0]
-                finished.append((end - offset, b, segment))
-            if tail is not None:
-                self._teacher_writer.check_length(
-                    tail.shape[0], f"The unfinished episode of stream {b}"
+            if segments and chunks:
+                # The episode carried over from earlier calls ends in this batch: the
+                # only place its chunks are concatenated.
+                finished.append(
+                    (segments[0].shape[0], b, torch.cat([*chunks, segments[0]], 0))
                 )
-                tails[b] = tail.clone()
+                chunks, pending_len = [], 0
+            elif segments:
+                finished.append((segments[0].shape[0], b, segments[0]))
+            end = segments[0].shape[0] if segments else 0
+            for segment in segments[1:]:
+                end += segment.shape[0]
+                finished.append((end, b, segment))
+            if tail is not None:
+                length = pending_len + tail.shape[0]
+                self._teacher_writer.check_length(
+                    length, f"The unfinished episode of stream {b}"
+                )
+                # clone: the input may be a view the caller (or collector) overwrites.
+                tails[b] = [*chunks, tail.clone()]
+                tail_lens[b] = length
+            elif chunks and not segments:
+                # A zero-length batch: the episode in progress is unchanged.
+                tails[b], tail_lens[b] = chunks, pending_len
         self._check_lengths([seg for _, _, seg in finished], "An offered trajectory")
         finished.sort(key=lambda item: item[:2])
         writer._pending = tails
+        writer._pending_len = tail_lens
         writer._pending_streams = len(streams) if tails else 0
         return self._admit_many([seg for _, _, seg in finished])

@@ -15,7 +15,13 @@ import torch
 from tensordict import TensorDictBase, unravel_key
 from tensordict.utils import expand_as_right, NestedKey
 from torchrl.data.tensor_specs import Composite, TensorSpec, Unbounded
-from torchrl.envs.transforms import Transform
+from torchrl.envs.common import EnvBase
+from torchrl.envs.transforms import (
+    Compose,
+    DTypeCastTransform,
+    StepCounter,
+    Transform,
+)
 from torchrl.envs.transforms.utils import _get_reset
 
 __all__ = ["DelayedRewardTransform"]
@@ -25,6 +31,7 @@ _ROUNDINGS = ("floor", "none")
 # flooring: binary floats make e.g. ``0.3 * 10 == 2.9999999999999996``, which would floor
 # to 2. 1e-12 is far below the resolution of a float32 reward (~6e-8 relative).
 _SNAP_RTOL = 1e-12
+_DONE_NAMES = ("done", "terminated", "truncated")
 
 
 class DelayedRewardTransform(Transform):
@@ -52,9 +59,14 @@ class DelayedRewardTransform(Transform):
     Where to put it in a :class:`~torchrl.envs.Compose`: after ``DoubleToFloat`` (which
     would otherwise cast the float64 running return to float32) and after any transform
     that sets ``done`` (e.g. ``StepCounter(max_steps)``, whose truncation must release the
-    reward). To also log the dense return under another key, put
-    ``RewardSum(out_keys=["dense_return"])`` *before* this transform; the final sums are
-    equal either way.
+    reward). Both misplacements are detected: a ``ValueError`` is raised when such a
+    transform comes *after* this one in the same ``Compose`` (checked when the transform
+    is put in a ``Compose`` and again when the env builds its specs, so a later
+    ``append_transform`` is caught too; transforms of an outer ``TransformedEnv`` wrapping
+    this env are not seen). To also log the dense return under another key, put
+    ``RewardSum(in_keys=["reward"], out_keys=["dense_return"])`` *before* this transform
+    (torchrl 0.14.1's ``RewardSum`` needs the explicit ``in_keys`` when ``out_keys`` is
+    given); the final sums are equal either way.
 
     Offline, calling the transform (:meth:`forward`) on a batch of **complete**
     trajectories ``[*, T]`` gives exactly the rewards the env mode gives on the same data
@@ -78,11 +90,18 @@ class DelayedRewardTransform(Transform):
 
     Examples:
         >>> import torch
-        >>> from torchrl.envs import Compose, GymEnv, StepCounter, TransformedEnv
+        >>> from torchrl.envs import (
+        ...     Compose, DoubleToFloat, GymEnv, RewardSum, StepCounter, TransformedEnv
+        ... )
         >>> from torchrl_sail import DelayedRewardTransform
         >>> env = TransformedEnv(
         ...     GymEnv("Pendulum-v1"),
-        ...     Compose(StepCounter(max_steps=5), DelayedRewardTransform()),
+        ...     Compose(
+        ...         DoubleToFloat(),
+        ...         StepCounter(max_steps=5),
+        ...         RewardSum(in_keys=["reward"], out_keys=["dense_return"]),
+        ...         DelayedRewardTransform(),
+        ...     ),
         ... )
         >>> _ = env.set_seed(0)
         >>> rollout = env.rollout(5)
@@ -94,6 +113,8 @@ class DelayedRewardTransform(Transform):
         True
         >>> rollout["next", "episode_return"].dtype
         torch.float64
+        >>> torch.allclose(rollout["next", "dense_return"][-1].double(), dense_return)
+        True
     """
 
     def __init__(
@@ -165,6 +186,83 @@ class DelayedRewardTransform(Transform):
                     f"{type(self).__name__} expects exactly one reset key, got {value}."
                 )
         self._reset_keys = value
+
+    def set_container(self, container: Transform | EnvBase) -> None:
+        super().set_container(container)
+        self._check_placement()
+
+    def _transforms_after(self) -> list[Transform]:
+        """The transforms that run after this one, in every enclosing ``Compose``.
+
+        Walks the container chain through ``__dict__`` only: :attr:`parent` would build
+        the parent env, which may not be complete yet when ``set_container`` runs.
+        """
+        after = []
+        child = self
+        container_ref = self.__dict__.get("_container", None)
+        while container_ref is not None:
+            container = container_ref()
+            if not isinstance(container, Compose):
+                break
+            siblings = list(container.transforms)
+            index = next((i for i, t in enumerate(siblings) if t is child), None)
+            if index is None:
+                # Mid-edit of the Compose (e.g. __setitem__): nothing reliable to scan.
+                break
+            after.extend(_flatten(siblings[index + 1 :]))
+            child = container
+            container_ref = container.__dict__.get("_container", None)
+        return after
+
+    def _sets_done(self, transform: Transform) -> bool:
+        if isinstance(transform, StepCounter):
+            # Without max_steps it only counts; with update_done=False it leaves done alone.
+            return transform.max_steps is not None and transform.update_done
+        done_keys = {self.done_key}
+        for key in transform.__dict__.get("_out_keys", None) or []:
+            key = unravel_key(key)
+            leaf = key if isinstance(key, str) else key[-1]
+            if key in done_keys or leaf in _DONE_NAMES:
+                return True
+        return False
+
+    def _casts_return(self, transform: Transform) -> bool:
+        if not isinstance(transform, DTypeCastTransform):
+            return False
+        if transform.dtype_in != torch.float64 or transform.dtype_out == torch.float64:
+            return False
+        # No explicit in_keys: every float64 entry of the specs is cast, ours included.
+        in_keys = transform.__dict__.get("_in_keys", None)
+        return in_keys is None or self.return_key in [unravel_key(k) for k in in_keys]
+
+    def _check_placement(self) -> None:
+        """Raises if a later transform of the same ``Compose`` breaks the delayed reward.
+
+        A done set after this transform ran is never seen by it, so those episodes
+        would silently end with reward 0; a float64 -> float32 cast after it would round
+        the running return the floor is computed from.
+        """
+        name = type(self).__name__
+        problems = []
+        for transform in self._transforms_after():
+            label = _describe(transform)
+            if self._sets_done(transform):
+                problems.append(
+                    f"{label} comes after {name} in the Compose and can set "
+                    f"{self.done_key!r}/'truncated' after the delayed reward was computed, "
+                    "so the episodes it ends would get reward 0. Put "
+                    f"{label} before {name} in the Compose."
+                )
+            if self._casts_return(transform):
+                problems.append(
+                    f"{label} comes after {name} in the Compose and would cast the "
+                    f"float64 running return {self.return_key!r} to "
+                    f"{transform.dtype_out}, losing the precision floor(scale * R) needs. "
+                    f"Put {label} before {name} in the Compose, or give it explicit "
+                    f"in_keys that do not include {self.return_key!r}."
+                )
+        if problems:
+            raise ValueError(" ".join(problems))
 
     def _delayed_value(self, episode_return: torch.Tensor) -> torch.Tensor:
         """Maps float64 dense returns to ``g(scale * R)`` (still float64)."""
@@ -299,6 +397,9 @@ class DelayedRewardTransform(Transform):
         return spec
 
     def transform_observation_spec(self, observation_spec: TensorSpec) -> TensorSpec:
+        # Specs are rebuilt after every append/insert, so this also catches transforms
+        # added to the Compose after set_container ran.
+        self._check_placement()
         return self._add_return_spec(observation_spec)
 
     def transform_input_spec(self, input_spec: TensorSpec) -> TensorSpec:
@@ -325,6 +426,22 @@ class DelayedRewardTransform(Transform):
             f"reward_key={self.reward_key!r}, done_key={self.done_key!r}, "
             f"return_key={self.return_key!r})"
         )
+
+
+def _flatten(transforms: Sequence[Transform]) -> list[Transform]:
+    flat = []
+    for transform in transforms:
+        if isinstance(transform, Compose):
+            flat.extend(_flatten(list(transform.transforms)))
+        else:
+            flat.append(transform)
+    return flat
+
+
+def _describe(transform: Transform) -> str:
+    if isinstance(transform, StepCounter):
+        return f"StepCounter(max_steps={transform.max_steps})"
+    return f"{type(transform).__name__}()"
 
 
 def _segment_cumsum(values: torch.Tensor, done: torch.Tensor) -> torch.Tensor:

@@ -204,7 +204,8 @@ class DiscriminatorReward(Transform):
                     shape = reward_spec[reward_key].shape
                     device = reward_spec[reward_key].device
                     break
+        # softplus keeps the logit's dtype, i.e. the discriminator's parameter dtype.
         reward_spec[out_key] = Unbounded(
-            shape=shape, device=device, dtype=torch.float32
+            shape=shape, device=device, dtype=self.discriminator.module.dtype
         )
         return reward_spec

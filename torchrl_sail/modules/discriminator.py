@@ -243,8 +243,17 @@ class DiscriminatorNet(nn.Module):
                 if layer.bias is not None:
                     nn.init.zeros_(layer.bias)
 
+    @property
+    def dtype(self) -> torch.dtype:
+        """The dtype of the MLP parameters (the dtype observations must have)."""
+        return next(self.mlp.parameters()).dtype
+
     def features(self, observation: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
         """Returns the MLP input ``concat(normalise(observation), action)``.
+
+        Raises:
+            TypeError: if ``observation`` does not have the parameters' dtype (e.g.
+                float64 MuJoCo observations without ``DoubleToFloat()``).
 
         Args:
             observation (torch.Tensor): ``[*batch, observation_dim]``.
@@ -264,6 +273,17 @@ class DiscriminatorNet(nn.Module):
             raise ValueError(
                 f"DiscriminatorNet: observation {tuple(observation.shape)} and action "
                 f"{tuple(action.shape)} must share their leading (batch) dimensions."
+            )
+        dtype = self.dtype
+        if observation.dtype != dtype:
+            # Not cast here: a float64 observation means the env stack lacks a cast, and
+            # the policy/critic reading the same data would hit the same mismatch.
+            raise TypeError(
+                f"DiscriminatorNet: observations are {observation.dtype} but the "
+                f"discriminator's parameters are {dtype}. Cast the observations to "
+                f"{dtype} upstream, e.g. add DoubleToFloat() at the start of the env's "
+                "Compose (and to the demonstrations), or convert the discriminator "
+                f"with .to({observation.dtype})."
             )
         if self.obs_norm is not None:
             observation = self.obs_norm(observation)

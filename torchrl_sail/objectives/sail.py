@@ -288,9 +288,9 @@ class SAILLoss(TD3Loss):
         super()._set_in_keys()
         # Listed so that batches built with ``select(*loss.in_keys)`` keep the tag and the
         # keyword-argument (dispatch) call mode accepts ``is_teacher=``.
-        keys = set(self._in_keys)
-        keys.add(self.tensor_keys.is_teacher)
-        self._in_keys = list(keys)
+        # dict.fromkeys dedups in insertion order: a set would make the order of
+        # loss.in_keys depend on PYTHONHASHSEED.
+        self._in_keys = list(dict.fromkeys([*self._in_keys, self.tensor_keys.is_teacher]))
 
     # ------------------------------------------------------------------ weights
 

@@ -1,0 +1,150 @@
+"""End-to-end runs of ``examples/sail_td3.py`` with tiny budgets: outputs, resume, bad input."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import torch
+
+from torchrl_sail import TopKTeacherReplayBuffer
+
+REPO = Path(__file__).resolve().parents[1]
+SCRIPT = REPO / "examples" / "sail_td3.py"
+HOPPER = "expert_data_no_img_Hopper_scores_1500_episodes_1.npz"
+CHEETAH = "expert_data_no_img_HalfCheetah_scores_5600_episodes_1.npz"
+
+# Warm-up 1000 frames, then 50 SAIL updates per 1000 frames and 2 D steps per 500 frames.
+TINY = [
+    "collector.init_random_frames=1000",
+    "collector.frames_per_batch=500",
+    "optim.updates_per_train=50",
+    "optim.discriminator.steps=2",
+    "eval.every_frames=1000",
+    "eval.episodes=1",
+    "logger.log_every_frames=500",
+]
+
+
+def run(run_dir: Path, *overrides: str, check: bool = True) -> subprocess.CompletedProcess:
+    env = {**os.environ, "WANDB_SILENT": "true", "HYDRA_FULL_ERROR": "0"}
+    proc = subprocess.run(
+        [sys.executable, str(SCRIPT), f"hydra.run.dir={run_dir}", *overrides],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=600,
+    )
+    if check and proc.returncode != 0:
+        raise AssertionError(f"sail_td3.py failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-5000:]}")
+    return proc
+
+
+def scalar(run_dir: Path, tag: str) -> list[tuple[int, float]]:
+    path = run_dir / "logs" / "scalars" / f"{tag}.csv"
+    rows = [line.split(",") for line in path.read_text().splitlines() if line.strip()]
+    return [(int(float(s)), float(v)) for s, v in rows]
+
+
+def test_smoke_hopper_outputs(tmp_path, teacher_dir):
+    run_dir = tmp_path / "run"
+    run(run_dir, "env=Hopper-v4", f"teacher.path={teacher_dir / HOPPER}",
+        "collector.total_frames=3000", "checkpoint.every_frames=2000",
+        "logger.backends=[csv,wandb]", *TINY)
+
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert summary["frames"] == 3000 and summary["env"] == "Hopper-v4"
+    assert summary["teacher_return"] == pytest.approx(1480.688, abs=1e-2)
+    # 2 training blocks (at 1000 and 2000... and 3000 frames) of 50 updates each
+    assert summary["gradient_steps"] == 150
+    assert summary["num_promoted"] == 0 and summary["teacher_threshold"] == 148.0
+    assert summary["frames_per_second"] > 0 and summary["peak_memory_mb"] > 0
+    assert len(scalar(run_dir, "eval/return")) == 3  # at 1000, 2000, 3000 frames
+    for tag in ["train/dense_return", "teacher/threshold", "alpha", "d/accuracy_teacher",
+                "d/accuracy_agent", "d/loss_discriminator", "sail/loss_qvalue",
+                "sail/d_reward_mean", "time/fps", "replay/size"]:
+        rows = scalar(run_dir, tag)
+        assert rows, tag
+    assert scalar(run_dir, "alpha")[-1][1] == 0.5
+    assert scalar(run_dir, "replay/size")[-1] == (3000, 3000.0)
+    png = (run_dir / "learning_curve.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 5000
+    assert (run_dir / "config.yaml").exists()
+    assert any((run_dir / "wandb").glob("offline-run-*"))
+    state = torch.load(run_dir / "checkpoint.pt", weights_only=False)
+    assert state["counters"]["frames"] == 3000 and len(state["replay"]["data"]["action"]) == 3000
+
+
+def test_resume_restores_state(tmp_path, teacher_dir):
+    run_dir = tmp_path / "run"
+    common = ["env=Hopper-v4", f"teacher.path={teacher_dir / HOPPER}", "checkpoint.every_frames=1000",
+              "logger.backends=[csv]", *TINY]
+    run(run_dir, *common, "collector.total_frames=2000")
+    saved = torch.load(run_dir / "checkpoint.pt", weights_only=False)
+
+    # A run folder with a checkpoint is never silently overwritten.
+    proc = run(run_dir, *common, "collector.total_frames=2000", check=False)
+    assert proc.returncode != 0 and "resume=true" in proc.stderr
+
+    # Resuming with nothing left to collect restores and re-saves the same state.
+    run(run_dir, *common, "collector.total_frames=2000", "resume=true")
+    restored = torch.load(run_dir / "checkpoint.pt", weights_only=False)
+    assert restored["counters"] == saved["counters"]
+    for key in saved["replay"]["data"]:
+        torch.testing.assert_close(restored["replay"]["data"][key], saved["replay"]["data"][key])
+    buffers = []
+    for state in (saved, restored):
+        buffer = TopKTeacherReplayBuffer(k=10)
+        buffer.load_state_dict(state["teacher"])
+        buffers.append(buffer)
+    assert buffers[0].window == buffers[1].window and buffers[0].threshold == buffers[1].threshold == 148.0
+    assert buffers[0].num_offered == buffers[1].num_offered > 0
+    assert (buffers[0].transitions() == buffers[1].transitions()).all()
+    assert restored["alpha_scheduler"] == saved["alpha_scheduler"]
+    torch.testing.assert_close(restored["loss"]["alpha"], saved["loss"]["alpha"])
+    for name in ("actor", "critic", "discriminator"):
+        steps = [s["step"] for s in saved["optimizers"][name]["state"].values()]
+        assert steps and steps == [s["step"] for s in restored["optimizers"][name]["state"].values()]
+    for key, value in saved["loss"].items():
+        torch.testing.assert_close(restored["loss"][key], value)
+
+    # Resuming with a larger budget continues the same curve.
+    run(run_dir, *common, "collector.total_frames=3000", "resume=true")
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert summary["frames"] == 3000 and summary["gradient_steps"] == 150
+    frames = [f for f, _ in scalar(run_dir, "eval/return")]
+    assert frames == [1000, 2000, 3000]
+
+
+@pytest.mark.parametrize(
+    "overrides, message",
+    [
+        (["env=Hopper-v4", "env.name=Hoper-v4"], "Unknown gymnasium env 'Hoper-v4'"),
+        (["env=Hopper-v4", "teacher.path={teachers}/" + CHEETAH], "'observation' has 18 dims, env has 12"),
+        (["env=Hopper-v4", "teacher.path={teachers}/missing.npz"], "missing.npz"),
+        (["env=Hopper-v4", "teacher.path={teachers}/README.md"], "README.md"),
+        (["env=Hopper-v4", "optim.batch_size=0"], "optim.batch_size=0"),
+        (["env=Hopper-v4", "optim.gamma=1.5"], "optim.gamma=1.5"),
+        (["env=Hopper-v4", "logger.backends=[csv,mlflowx]"], "mlflowx"),
+    ],
+)
+def test_bad_input_fails_before_training(tmp_path, teacher_dir, overrides, message):
+    overrides = [o.format(teachers=teacher_dir) for o in overrides]
+    if not any(o.startswith("teacher.path") for o in overrides):
+        overrides.append(f"teacher.path={teacher_dir / HOPPER}")
+    proc = run(tmp_path / "run", *overrides, "collector.total_frames=1000", check=False)
+    assert proc.returncode != 0
+    assert message in proc.stderr, proc.stderr[-2000:]
+    assert not (tmp_path / "run" / "checkpoint.pt").exists()
+
+
+def test_corrupt_checkpoint_is_reported(tmp_path, teacher_dir):
+    run_dir = tmp_path / "run"
+    run_dir.mkdir()
+    (run_dir / "checkpoint.pt").write_bytes(b"not a checkpoint")
+    proc = run(run_dir, "env=Hopper-v4", f"teacher.path={teacher_dir / HOPPER}", "resume=true",
+               "collector.total_frames=1000", check=False)
+    assert proc.returncode != 0 and "checkpoint.pt is unreadable" in proc.stderr
