@@ -2,18 +2,13 @@
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
-from pathlib import Path
 
 import pytest
 import torch
+from example_runner import run, scalar
 
 from torchrl_sail import TopKTeacherReplayBuffer
 
-REPO = Path(__file__).resolve().parents[1]
-SCRIPT = REPO / "examples" / "sail_td3.py"
 HOPPER = "expert_data_no_img_Hopper_scores_1500_episodes_1.npz"
 CHEETAH = "expert_data_no_img_HalfCheetah_scores_5600_episodes_1.npz"
 
@@ -29,26 +24,6 @@ TINY = [
 ]
 
 
-def run(run_dir: Path, *overrides: str, check: bool = True) -> subprocess.CompletedProcess:
-    env = {**os.environ, "WANDB_SILENT": "true", "HYDRA_FULL_ERROR": "0"}
-    proc = subprocess.run(
-        [sys.executable, str(SCRIPT), f"hydra.run.dir={run_dir}", *overrides],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=600,
-    )
-    if check and proc.returncode != 0:
-        raise AssertionError(f"sail_td3.py failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-5000:]}")
-    return proc
-
-
-def scalar(run_dir: Path, tag: str) -> list[tuple[int, float]]:
-    path = run_dir / "logs" / "scalars" / f"{tag}.csv"
-    rows = [line.split(",") for line in path.read_text().splitlines() if line.strip()]
-    return [(int(float(s)), float(v)) for s, v in rows]
-
-
 def test_smoke_hopper_outputs(tmp_path, teacher_dir):
     run_dir = tmp_path / "run"
     run(run_dir, "env=Hopper-v4", f"teacher.path={teacher_dir / HOPPER}",
@@ -58,7 +33,7 @@ def test_smoke_hopper_outputs(tmp_path, teacher_dir):
     summary = json.loads((run_dir / "summary.json").read_text())
     assert summary["frames"] == 3000 and summary["env"] == "Hopper-v4"
     assert summary["teacher_return"] == pytest.approx(1480.688, abs=1e-2)
-    # 2 training blocks (at 1000 and 2000... and 3000 frames) of 50 updates each
+    # 3 training blocks (at 1000, 2000 and 3000 frames) of 50 updates each
     assert summary["gradient_steps"] == 150
     assert summary["num_promoted"] == 0 and summary["teacher_threshold"] == 148.0
     assert summary["frames_per_second"] > 0 and summary["peak_memory_mb"] > 0
