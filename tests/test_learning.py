@@ -1,13 +1,14 @@
 """SAIL learns: with a deliberately weak teacher, in the delayed-reward setting, it surpasses it.
 
 Task: InvertedPendulum-v4 (cheap, 4-dim observations + time feature), reward only at the
-end of the episode (``floor(0.1 * R)``). Teacher: the best of 200 random-policy episodes
-(dense return 18, so r_e = 1; no random episode reached 20 in that sample, so promotions
-have to come from learning rather than from warm-up luck). Budget: 10k frames with small
-networks, about a minute on 2 CPU cores.
+end of the episode (``floor(0.1 * R)``). Teacher: the best of 200 seeded random-policy
+episodes (dense return 18, so r_e = 1). Budget: 20k frames with [64, 64] networks, about
+2.5 minutes on one CPU core.
 
-The thresholds were checked on several seeds before committing (see CHANGELOG / the
-closing note of the learning-test change): every seed ended far above the teacher.
+Checked on seeds 0-3 before committing (same config, 3 deterministic eval episodes every
+2k frames): the mean of the last three evaluations was 45.3 / 51.3 / 53.0 / 56.7 (final
+46 / 55 / 76 / 81), the threshold C ended at 7 / 9 / 8 / 7, with 33-54 promotions. At 10k
+frames one seed of five was still at 23, so 10k is not enough for a reliable test.
 """
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ import json
 import pytest
 import torch
 
-from example_runner import run
+from example_runner import run, scalar
 from torchrl_sail import make_sail_env, save_demonstrations
 from torchrl_sail.data._keys import TRANSITION_KEYS
 
@@ -25,7 +26,7 @@ pytestmark = pytest.mark.filterwarnings("ignore:.*is out of date.*")
 ENV = "InvertedPendulum-v4"
 BUDGET = [
     f"env={ENV}",
-    "collector.total_frames=10000",
+    "collector.total_frames=20000",
     "collector.init_random_frames=1000",
     "network.actor_cells=[64,64]",
     "network.critic_cells=[64,64]",
@@ -63,8 +64,10 @@ def test_sail_surpasses_weak_teacher(tmp_path):
     summary = json.loads((run_dir / "summary.json").read_text())
 
     assert summary["teacher_return"] == teacher_return
-    # Clearly above the teacher, from the delayed reward alone.
-    assert summary["final_eval_return"] >= 2 * teacher_return, summary
+    # Clearly above the teacher, from the delayed reward alone: the last three evaluations
+    # (9 deterministic episodes; single evaluations are noisy) average >= 2x the teacher.
+    last = [value for _, value in scalar(run_dir, "eval/return")[-3:]]
+    assert sum(last) / 3 >= 2 * teacher_return, (last, summary)
     # Algorithm 1 at work: own trajectories beat C and refill the teacher buffer ...
     assert summary["num_promoted"] >= 1, summary
     # C = min of the top-10 window rose from the teacher's r_e = 1 to >= 4, i.e. ten own
