@@ -214,6 +214,8 @@ def main(cfg):  # noqa: F821
             for _ in range(cfg.optim.discriminator.steps):
                 metrics.update(discriminator_update())
             next_d += cfg.optim.discriminator.every_frames
+        # Worker processes (collector.num_workers > 1) act with a copy of the policy.
+        collector.update_policy_weights_()
 
         if frames >= next_eval:
             returns = evaluate(eval_env, actor, cfg.eval.episodes, cfg.env.max_episode_steps)

@@ -123,3 +123,13 @@ def test_corrupt_checkpoint_is_reported(tmp_path, teacher_dir):
     proc = run(run_dir, "env=Hopper-v4", f"teacher.path={teacher_dir / HOPPER}", "resume=true",
                "collector.total_frames=1000", check=False)
     assert proc.returncode != 0 and "checkpoint.pt is unreadable" in proc.stderr
+
+
+def test_multiprocess_collector(tmp_path, teacher_dir):
+    # collector.num_workers > 1: TorchRL's multi-process collector, weights synced per batch.
+    run_dir = tmp_path / "run"
+    run(run_dir, "env=Hopper-v4", f"teacher.path={teacher_dir / HOPPER}", "collector.num_workers=2",
+        "collector.total_frames=2000", "logger.backends=[csv]", "checkpoint.every_frames=0", *TINY)
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert summary["frames"] == 2000 and summary["gradient_steps"] == 100
+    assert scalar(run_dir, "replay/size")[-1] == (2000, 2000.0)
