@@ -104,6 +104,11 @@ def main(cfg):  # noqa: F821
     history = {"eval": [], "passed_teacher_at": None}
     if cfg.resume:
         state = load_checkpoint(ckpt_path)
+        for key in ("env.name", "algo.name", "seed"):
+            saved = OmegaConf.select(OmegaConf.create(state["config"]), key)
+            if saved != OmegaConf.select(cfg, key):
+                raise ValueError(f"resume=true: {ckpt_path} was written with {key}={saved!r}, "
+                                 f"this run has {key}={OmegaConf.select(cfg, key)!r}; use the same value.")
         loss.load_state_dict(state["loss"])
         discriminator.load_state_dict(state["discriminator"])
         for name, opt in optimizers.items():

@@ -1,6 +1,7 @@
 """Builders and run-folder helpers for ``sail_td3.py`` (sota-implementations layout)."""
 from __future__ import annotations
 
+import importlib.util
 import json
 import math
 import random
@@ -86,6 +87,9 @@ def check_config(cfg: DictConfig) -> None:
     bad = set(cfg.logger.backends) - {"csv", "wandb", "tensorboard"}
     if bad:
         fail("logger.backends", list(cfg.logger.backends), f"unknown {sorted(bad)}; use csv, wandb, tensorboard")
+    if "tensorboard" in cfg.logger.backends and importlib.util.find_spec("tensorboard") is None:
+        fail("logger.backends", list(cfg.logger.backends),
+             "the tensorboard backend needs the tensorboard package: pip install -e '.[tensorboard]'")
     if cfg.device != "cpu" and not torch.cuda.is_available():
         fail("device", cfg.device, "CUDA is not available on this machine; use device=cpu")
 

@@ -104,6 +104,7 @@ def test_resume_restores_state(tmp_path, teacher_dir):
         (["env=Hopper-v4", "optim.batch_size=0"], "optim.batch_size=0"),
         (["env=Hopper-v4", "optim.gamma=1.5"], "optim.gamma=1.5"),
         (["env=Hopper-v4", "logger.backends=[csv,mlflowx]"], "mlflowx"),
+        (["env=Hopper-v4", "env.name=Swimer-v4"], "Did you mean 'Swimmer-v4'"),
     ],
 )
 def test_bad_input_fails_before_training(tmp_path, teacher_dir, overrides, message):
@@ -114,6 +115,15 @@ def test_bad_input_fails_before_training(tmp_path, teacher_dir, overrides, messa
     assert proc.returncode != 0
     assert message in proc.stderr, proc.stderr[-2000:]
     assert not (tmp_path / "run" / "checkpoint.pt").exists()
+
+
+def test_resume_with_other_env_is_refused(tmp_path, teacher_dir):
+    run_dir = tmp_path / "run"
+    run(run_dir, "env=Hopper-v4", f"teacher.path={teacher_dir / HOPPER}", "collector.total_frames=1000",
+        "logger.backends=[csv]", *TINY)
+    proc = run(run_dir, "env=Hopper-v4", f"teacher.path={teacher_dir / HOPPER}", "collector.total_frames=1000",
+               "logger.backends=[csv]", "seed=1", "resume=true", *TINY, check=False)
+    assert proc.returncode != 0 and "written with seed=0" in proc.stderr
 
 
 def test_corrupt_checkpoint_is_reported(tmp_path, teacher_dir):
@@ -133,3 +143,19 @@ def test_multiprocess_collector(tmp_path, teacher_dir):
     summary = json.loads((run_dir / "summary.json").read_text())
     assert summary["frames"] == 2000 and summary["gradient_steps"] == 100
     assert scalar(run_dir, "replay/size")[-1] == (2000, 2000.0)
+
+
+@pytest.mark.parametrize("algo", ["sail_no_lfd", "sail_no_adapt", "sail_onpolicy"])
+def test_ablations_run(tmp_path, teacher_dir, algo):
+    run_dir = tmp_path / algo
+    run(run_dir, "env=Hopper-v4", f"algo={algo}", f"teacher.path={teacher_dir / HOPPER}",
+        "collector.total_frames=2000", "logger.backends=[csv]", "checkpoint.every_frames=0", *TINY)
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert summary["algo"] == algo and summary["frames"] == 2000
+    alphas = {value for _, value in scalar(run_dir, "alpha")}
+    if algo == "sail_no_lfd":
+        assert alphas == {0.0}  # no teacher rows in the TD3 batches
+    else:
+        assert alphas == {0.5}
+    if algo == "sail_no_adapt":  # the teacher buffer never changes: still the one demo
+        assert {value for _, value in scalar(run_dir, "teacher/size")} == {425.0}
