@@ -22,7 +22,6 @@ import torch
 import tqdm
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import OmegaConf
-from torchrl.collectors import Collector
 
 from torchrl_sail import DiscriminatorReward, MixedReplayBuffer
 from torchrl_sail.data._keys import TRANSITION_KEYS
@@ -35,7 +34,9 @@ from utils import (
     load_rng_state,
     load_teacher,
     log_metrics,
+    logger_states,
     make_agent,
+    make_collector,
     make_discriminator,
     make_env,
     make_losses,
@@ -49,6 +50,7 @@ from utils import (
     rng_state,
     save_checkpoint,
     seed_everything,
+    truncate_scalars,
     write_json,
 )
 
@@ -126,9 +128,11 @@ def main(cfg):  # noqa: F821
         history = state["history"]
         load_rng_state(state["rng"])
         env.set_seed(cfg.seed + frames)  # a different episode stream than the one before the stop
+        # Rows logged after the checkpoint are logged again by this run: drop them.
+        truncate_scalars(run_dir, frames)
     else:
         OmegaConf.save(cfg, run_dir / "config.yaml", resolve=True)
-    loggers = make_loggers(cfg, run_dir)
+    loggers = make_loggers(cfg, run_dir, state.get("loggers") if cfg.resume else None)
 
     def checkpoint():
         save_checkpoint(ckpt_path, {
@@ -143,21 +147,12 @@ def main(cfg):  # noqa: F821
                          "next_eval": next_eval, "next_ckpt": next_ckpt, "gradient_steps": gradient_steps},
             "history": history,
             "rng": rng_state(),
+            "loggers": logger_states(loggers),
             "config": OmegaConf.to_container(cfg, resolve=True),
         })
 
-    collector_kwargs = {}
-    if cfg.collector.num_workers > 1:
-        collector_kwargs = {"num_collectors": cfg.collector.num_workers, "sync": True}
     # A resumed run collects only what is left of the budget (possibly nothing).
-    collector = Collector(
-        lambda: make_env(cfg, cfg.seed + frames) if cfg.collector.num_workers > 1 else env,
-        exploration_policy,
-        frames_per_batch=cfg.collector.frames_per_batch,
-        total_frames=max(cfg.collector.total_frames - frames, cfg.collector.frames_per_batch),
-        init_random_frames=max(0, warmup - frames),
-        **collector_kwargs,
-    ) if frames < cfg.collector.total_frames else []
+    collector = make_collector(cfg, env, exploration_policy, frames=frames) if frames < cfg.collector.total_frames else []
 
     def sail_update() -> dict:
         nonlocal gradient_steps
@@ -219,7 +214,7 @@ def main(cfg):  # noqa: F821
             for _ in range(cfg.optim.discriminator.steps):
                 metrics.update(discriminator_update())
             next_d += cfg.optim.discriminator.every_frames
-        # Worker processes (collector.num_workers > 1) act with a copy of the policy.
+        # Worker processes or Ray actors act with a copy of the policy.
         collector.update_policy_weights_()
 
         if frames >= next_eval:

@@ -6,6 +6,7 @@ import json
 import math
 import random
 import resource
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +15,7 @@ from omegaconf import DictConfig, OmegaConf
 from tensordict import TensorDict
 from tensordict.nn import TensorDictModule, TensorDictSequential
 from torch import nn
+from torchrl.collectors import Collector
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.modules import MLP, AdditiveGaussianModule, TanhModule, ValueOperator
@@ -90,6 +92,12 @@ def check_config(cfg: DictConfig) -> None:
     if "tensorboard" in cfg.logger.backends and importlib.util.find_spec("tensorboard") is None:
         fail("logger.backends", list(cfg.logger.backends),
              "the tensorboard backend needs the tensorboard package: pip install -e '.[tensorboard]'")
+    if c.backend not in (None, "direct", "process", "ray"):
+        fail("collector.backend", c.backend, "use null, direct, process or ray")
+    if c.backend == "direct" and c.num_workers != 1:
+        fail("collector.backend", c.backend, f"direct runs one worker, but collector.num_workers={c.num_workers}")
+    if c.backend == "ray" and importlib.util.find_spec("ray") is None:
+        fail("collector.backend", c.backend, "the ray backend needs Ray: pip install ray")
     if cfg.device != "cpu" and not torch.cuda.is_available():
         fail("device", cfg.device, "CUDA is not available on this machine; use device=cpu")
 
@@ -107,6 +115,32 @@ def make_env(cfg: DictConfig, seed: int):
     )
     env.set_seed(seed)
     return env
+
+
+def make_collector(cfg: DictConfig, env, policy, *, frames: int):
+    """TorchRL's ``Collector`` for what is left of the budget after ``frames`` (0 on a fresh run)."""
+    backend = cfg.collector.backend or ("process" if cfg.collector.num_workers > 1 else "direct")
+    kwargs = {}
+    if backend != "direct":
+        options = cfg.collector.backend_options
+        kwargs = {"backend": backend, "num_collectors": cfg.collector.num_workers, "sync": True,
+                  "backend_options": {} if options is None else OmegaConf.to_container(options, resolve=True)}
+        # Workers build their own env (seeded below) from the installed package, so remote
+        # workers (Ray actors) need torchrl_sail installed but not this examples/ folder.
+        env = partial(make_sail_env, cfg.env.name, max_episode_steps=cfg.env.max_episode_steps,
+                      device=cfg.device)
+    collector = Collector(
+        env,
+        policy,
+        frames_per_batch=cfg.collector.frames_per_batch,
+        total_frames=max(cfg.collector.total_frames - frames, cfg.collector.frames_per_batch),
+        init_random_frames=max(0, cfg.collector.init_random_frames - frames),
+        **kwargs,
+    )
+    if backend != "direct":
+        # One seed per worker (seed, seed + 1, ...): otherwise all workers replay the same episodes.
+        collector.set_seed(cfg.seed + frames)
+    return collector
 
 
 def teacher_path(cfg: DictConfig) -> Path:
@@ -239,8 +273,9 @@ def evaluate(env, actor, episodes: int, max_steps: int) -> list[float]:
 
 
 # ----------------------------------------------------------------------------- logging
-def make_loggers(cfg: DictConfig, run_dir: Path) -> list:
-    loggers = []
+def make_loggers(cfg: DictConfig, run_dir: Path, states: dict | None = None) -> dict:
+    """TorchRL loggers by backend name; ``states`` (from ``logger_states``) resumes them."""
+    loggers = {}
     for backend in dict.fromkeys(["csv", *cfg.logger.backends]):  # csv always, once
         kwargs = {}
         if backend == "wandb":
@@ -250,16 +285,31 @@ def make_loggers(cfg: DictConfig, run_dir: Path) -> list:
                 "project": cfg.logger.project,
                 "config": OmegaConf.to_container(cfg, resolve=True),
             }}
-        loggers.append(
-            get_logger(backend, logger_name=str(run_dir), experiment_name="logs", **kwargs)
-        )
+        if states and backend in states:
+            kwargs["state_dict"] = states[backend]  # e.g. wandb: log to the same run id
+        loggers[backend] = get_logger(backend, logger_name=str(run_dir), experiment_name="logs", **kwargs)
     return loggers
+
+
+def logger_states(loggers: dict) -> dict:
+    # The CSV logger's state is its whole history, already on disk: resume truncates the
+    # files instead (truncate_scalars).
+    return {name: logger.state_dict() for name, logger in loggers.items() if name != "csv"}
+
+
+def truncate_scalars(run_dir: Path, frames: int) -> None:
+    """Drops CSV rows logged after ``frames``: a resumed run re-logs them from its checkpoint."""
+    for path in sorted((run_dir / "logs" / "scalars").glob("**/*.csv")):
+        lines = path.read_text().splitlines(keepends=True)
+        kept = [line for line in lines if line.strip() and int(float(line.split(",")[0])) <= frames]
+        if len(kept) != len(lines):
+            atomic_write(path, lambda f, text="".join(kept): f.write(text.encode()))
 
 
 def log_metrics(loggers, metrics: dict, step: int) -> None:
     values = {k: float(v.detach()) if torch.is_tensor(v) else float(v) for k, v in metrics.items() if v is not None}
     metrics = {k: v for k, v in values.items() if math.isfinite(v)}
-    for logger in loggers:
+    for logger in loggers.values():
         logger.log_metrics(metrics, step)
 
 

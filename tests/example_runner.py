@@ -10,15 +10,29 @@ REPO = Path(__file__).resolve().parents[1]
 SCRIPT = REPO / "examples" / "sail_td3.py"
 
 
-def run(run_dir: Path, *overrides: str, check: bool = True) -> subprocess.CompletedProcess:
-    """``python examples/sail_td3.py hydra.run.dir=<run_dir> <overrides>``; raises on failure if ``check``."""
-    env = {**os.environ, "WANDB_SILENT": "true", "HYDRA_FULL_ERROR": "0"}
+def start(run_dir: Path, *overrides: str) -> subprocess.Popen:
+    """Starts ``sail_td3.py hydra.run.dir=<run_dir> <overrides>`` without waiting (to kill it)."""
+    env = {**os.environ, "WANDB_SILENT": "true"}
+    return subprocess.Popen([sys.executable, str(SCRIPT), f"hydra.run.dir={run_dir}", *overrides],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env, cwd=REPO)
+
+
+def run(run_dir: Path, *overrides: str, check: bool = True, multirun: bool = False,
+        env: dict | None = None) -> subprocess.CompletedProcess:
+    """``python examples/sail_td3.py hydra.run.dir=<run_dir> <overrides>``; raises on failure if ``check``.
+
+    With ``multirun=True`` it runs ``sail_td3.py -m hydra.sweep.dir=<run_dir> <overrides>`` instead.
+    ``env`` adds environment variables.
+    """
+    env = {**os.environ, "WANDB_SILENT": "true", "HYDRA_FULL_ERROR": "0", **(env or {})}
+    where = ["-m", f"hydra.sweep.dir={run_dir}"] if multirun else [f"hydra.run.dir={run_dir}"]
     proc = subprocess.run(
-        [sys.executable, str(SCRIPT), f"hydra.run.dir={run_dir}", *overrides],
+        [sys.executable, str(SCRIPT), *where, *overrides],
         capture_output=True,
         text=True,
         env=env,
         timeout=900,
+        cwd=REPO,
     )
     if check and proc.returncode != 0:
         raise AssertionError(f"sail_td3.py failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-5000:]}")

@@ -2,12 +2,14 @@
 from __future__ import annotations
 
 import json
+import signal
+import time
 
 import pytest
 import torch
-from example_runner import run, scalar
+from example_runner import run, scalar, start
 
-from torchrl_sail import TopKTeacherReplayBuffer
+from torchrl_sail import make_sail_env, TopKTeacherReplayBuffer
 
 HOPPER = "expert_data_no_img_Hopper_scores_1500_episodes_1.npz"
 CHEETAH = "expert_data_no_img_HalfCheetah_scores_5600_episodes_1.npz"
@@ -94,6 +96,36 @@ def test_resume_restores_state(tmp_path, teacher_dir):
     assert frames == [1000, 2000, 3000]
 
 
+def test_resume_after_kill_continues_the_same_curve(tmp_path, teacher_dir):
+    # SIGKILL a run after its 2000-frame checkpoint, once it has logged past it (eval at
+    # 3000), then resume: the rows logged after the checkpoint are dropped and logged again,
+    # so the curve has each frame once, and wandb keeps the same run id.
+    run_dir = tmp_path / "run"
+    common = ["env=Hopper-v4", f"teacher.path={teacher_dir / HOPPER}", "checkpoint.every_frames=2000",
+              "logger.backends=[csv,wandb]", "collector.total_frames=8000", *TINY]
+    proc = start(run_dir, *common)
+    eval_csv = run_dir / "logs" / "scalars" / "eval" / "return.csv"
+    deadline = time.time() + 600
+    while proc.poll() is None and time.time() < deadline:
+        if eval_csv.exists() and any(line.startswith("3000,") for line in eval_csv.read_text().splitlines()):
+            proc.send_signal(signal.SIGKILL)
+            break
+        time.sleep(0.02)
+    assert proc.wait(60) == -signal.SIGKILL, f"the run ended before it could be killed: {proc.stderr.read()[-3000:]}"
+    killed_at = torch.load(run_dir / "checkpoint.pt", weights_only=False)["counters"]["frames"]
+    assert killed_at == 2000, "the kill must land between the 2000- and 4000-frame checkpoints"
+    assert [f for f, _ in scalar(run_dir, "eval/return")] == [1000, 2000, 3000]
+
+    run(run_dir, *common, "resume=true")
+    assert [f for f, _ in scalar(run_dir, "eval/return")] == [1000, 2000, 3000, 4000, 5000, 6000, 7000, 8000]
+    for tag in ("alpha", "replay/size", "time/fps"):
+        frames = [f for f, _ in scalar(run_dir, tag)]
+        assert frames == sorted(set(frames)), tag  # no frame logged twice
+    assert scalar(run_dir, "replay/size")[-1] == (8000, 8000.0)
+    runs = sorted((run_dir / "wandb").glob("offline-run-*"))
+    assert len(runs) == 2 and len({path.name.rsplit("-", 1)[1] for path in runs}) == 1
+
+
 @pytest.mark.parametrize(
     "overrides, message",
     [
@@ -105,6 +137,8 @@ def test_resume_restores_state(tmp_path, teacher_dir):
         (["env=Hopper-v4", "optim.gamma=1.5"], "optim.gamma=1.5"),
         (["env=Hopper-v4", "logger.backends=[csv,mlflowx]"], "mlflowx"),
         (["env=Hopper-v4", "env.name=Swimer-v4"], "Did you mean 'Swimmer-v4'"),
+        (["env=Hopper-v4", "collector.backend=spark"], "collector.backend='spark'"),
+        (["env=Hopper-v4", "collector.backend=direct", "collector.num_workers=2"], "collector.num_workers=2"),
     ],
 )
 def test_bad_input_fails_before_training(tmp_path, teacher_dir, overrides, message):
@@ -143,6 +177,15 @@ def test_multiprocess_collector(tmp_path, teacher_dir):
     summary = json.loads((run_dir / "summary.json").read_text())
     assert summary["frames"] == 2000 and summary["gradient_steps"] == 100
     assert scalar(run_dir, "replay/size")[-1] == (2000, 2000.0)
+    # A [2 workers, 250] batch is flattened worker by worker: rows 0 and 250 are each
+    # worker's first reset. Worker i is seeded by collector.set_seed(seed=0): 0, then the
+    # seed env.set_seed returns, so both starts are reproducible and differ.
+    obs = torch.load(run_dir / "checkpoint.pt", weights_only=False)["replay"]["data"]["observation"]
+    seed = 0
+    for row in (0, 250):
+        env = make_sail_env("Hopper-v4", max_episode_steps=1000)
+        seed = env.set_seed(seed)
+        torch.testing.assert_close(obs[row], env.reset()["observation"], msg=f"worker start at row {row}")
 
 
 @pytest.mark.parametrize("algo", ["sail_no_lfd", "sail_no_adapt", "sail_onpolicy"])
@@ -159,3 +202,22 @@ def test_ablations_run(tmp_path, teacher_dir, algo):
         assert alphas == {0.5}
     if algo == "sail_no_adapt":  # the teacher buffer never changes: still the one demo
         assert {value for _, value in scalar(run_dir, "teacher/size")} == {425.0}
+
+
+@pytest.mark.parametrize("launcher", ["joblib", "submitit_local"])
+def test_seed_sweep_with_launcher(tmp_path, teacher_dir, launcher):
+    # `-m seed=0,1`: joblib runs the seeds in parallel processes; submitit_local runs them
+    # as submitit jobs, the path a Slurm sweep (submitit_slurm) takes. Submitit jobs unpickle
+    # the task in a fresh interpreter, so examples/ must be importable: PYTHONPATH=examples.
+    sweep = tmp_path / "sweep"
+    launcher_options = (["hydra.launcher.n_jobs=2"] if launcher == "joblib"
+                        else ["hydra.launcher.cpus_per_task=1", "hydra.launcher.timeout_min=10"])
+    run(sweep, f"hydra/launcher={launcher}", *launcher_options, "seed=0,1", "env=Hopper-v4",
+        f"teacher.path={teacher_dir / HOPPER}", "collector.total_frames=1000", "logger.backends=[csv]",
+        "checkpoint.every_frames=0", *TINY, multirun=True, env={"PYTHONPATH": "examples"})
+    summaries = [json.loads((sweep / f"seed{seed}" / "summary.json").read_text()) for seed in (0, 1)]
+    assert [s["seed"] for s in summaries] == [0, 1]
+    assert all(s["frames"] == 1000 and s["gradient_steps"] == 50 for s in summaries)
+    # Different seeds, different data: the random warm-up episodes differ.
+    returns = [scalar(sweep / f"seed{seed}", "train/dense_return") for seed in (0, 1)]
+    assert returns[0] != returns[1]
