@@ -138,7 +138,8 @@ def make_collector(cfg: DictConfig, env, policy, *, frames: int):
         **kwargs,
     )
     if backend != "direct":
-        # One seed per worker (seed, seed + 1, ...): otherwise all workers replay the same episodes.
+        # One seed per worker (worker 0 gets seed, each next one the seed env.set_seed returns):
+        # with one shared seed, all workers would replay the same episodes.
         collector.set_seed(cfg.seed + frames)
     return collector
 
