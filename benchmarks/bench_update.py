@@ -3,8 +3,9 @@
     python benchmarks/bench_update.py [--threads 1] [--iters 300]
 
 Peer = plain TorchRL TD3: ``TensorDictReplayBuffer.sample(256)`` + ``TD3Loss`` critic and
-actor steps. SAIL = ``MixedReplayBuffer.sample(128, 128)`` (teacher + agent) with the
-``DiscriminatorReward`` recomputed at sample time + ``SAILLoss`` critic and actor steps.
+actor steps. SAIL = ``MixedReplayBuffer.sample(256, teacher_fraction=0.5)`` (128 teacher +
+128 agent rows) with the ``DiscriminatorReward`` recomputed at sample time + ``SAILLoss``
+critic and actor steps.
 Both use the authors' sizes ([400, 300] ReLU nets, batch 256, Hopper dims 12/3), and
 both take an actor step every update (an upper bound on TD3's policy_delay=2 cost).
 Also timed: one discriminator step (256 + 256 rows, gradient penalty included) and the
@@ -30,7 +31,7 @@ from torchrl_sail import (
     DiscriminatorReward,
     MixedReplayBuffer,
     SAILLoss,
-    TopKTeacherReplayBuffer,
+    TeacherReplayBuffer,
 )
 
 OBS, ACT, BATCH = 12, 3, 256
@@ -109,7 +110,7 @@ def main():
 
     agent = TensorDictReplayBuffer(storage=LazyTensorStorage(100_000))
     agent.extend(transitions(100_000))
-    teacher = TopKTeacherReplayBuffer(k=10)
+    teacher = TeacherReplayBuffer()  # top-K, K = 10
     teacher.add_demonstrations(transitions(2_000))
     disc = Discriminator(OBS, ACT)
     mixer = MixedReplayBuffer(teacher, agent, transform=DiscriminatorReward(disc))
@@ -123,7 +124,7 @@ def main():
     d_opt = torch.optim.Adam(disc.parameters(), lr=1e-3)
 
     def d_step():
-        out = d_loss(d_mixer.sample(BATCH, BATCH))
+        out = d_loss(d_mixer.sample(2 * BATCH, teacher_fraction=0.5))
         total = sum(v for k, v in out.items() if k.startswith("loss_"))
         d_opt.zero_grad()
         total.backward()
@@ -131,10 +132,10 @@ def main():
 
     rows = [
         ("sample: TensorDictReplayBuffer.sample(256)  [peer]", lambda: agent.sample(BATCH)),
-        ("sample: MixedReplayBuffer.sample(128, 128)", lambda: d_mixer.sample(BATCH // 2, BATCH // 2)),
-        ("sample: Mixed + DiscriminatorReward", lambda: mixer.sample(BATCH // 2, BATCH // 2)),
+        ("sample: MixedReplayBuffer, 128 + 128", lambda: d_mixer.sample(BATCH, teacher_fraction=0.5)),
+        ("sample: Mixed + DiscriminatorReward", lambda: mixer.sample(BATCH, teacher_fraction=0.5)),
         ("update: TD3Loss on plain sample            [peer]", make_step(td3, lambda: agent.sample(BATCH))),
-        ("update: SAILLoss on mixed + D-reward sample", make_step(sail, lambda: mixer.sample(BATCH // 2, BATCH // 2))),
+        ("update: SAILLoss on mixed + D-reward sample", make_step(sail, lambda: mixer.sample(BATCH, teacher_fraction=0.5))),
         ("update: discriminator step (256 + 256, GP)", d_step),
     ]
     results = {}

@@ -3,7 +3,7 @@
     python benchmarks/summarize_runs.py benchmarks/results/hopper-v4_paper-teacher_*
 
 Prints, per run, the deterministic eval curve (from TorchRL's CSV logs), when the eval first
-passed the teacher, when the first own trajectory was promoted (alpha switch), the best
+passed the teacher, when the first agent trajectory was promoted (alpha switch), the best
 training return, frames/s and peak memory (from ``summary.json``). It only reads files, so
 every figure it prints was measured by the run itself.
 """

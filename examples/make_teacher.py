@@ -18,8 +18,7 @@ from torchrl.collectors import Collector
 from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.objectives import SoftUpdate, TD3Loss
 
-from torchrl_sail import make_sail_env, save_demonstrations
-from torchrl_sail.data._keys import TRANSITION_KEYS
+from torchrl_sail import make_sail_env, save_demonstrations, TRANSITION_KEYS
 from utils import make_agent, make_replay, seed_everything
 
 

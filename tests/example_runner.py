@@ -44,3 +44,32 @@ def scalar(run_dir: Path, tag: str) -> list[tuple[int, float]]:
     path = run_dir / "logs" / "scalars" / f"{tag}.csv"
     rows = [line.split(",") for line in path.read_text().splitlines() if line.strip()]
     return [(int(float(s)), float(v)) for s, v in rows]
+
+
+class Captured:
+    """Stands in for a state-dict component of a run: keeps the state the checkpoint holds."""
+
+    def state_dict(self) -> dict:
+        return {}
+
+    def load_state_dict(self, state: dict) -> None:
+        self.state = state
+
+
+def saved(run_dir: Path, *names: str) -> dict:
+    """The saved state of a run's checkpoint components: ``run`` (a dict), state-dict components
+    (``loss``, ``replay``, ``optim_critic``, ...) as their state dicts, ``teacher`` as a buffer."""
+    from torchrl.checkpoint import Checkpoint
+
+    from torchrl_sail import TeacherReplayBuffer, TopKTrajectoryWriter
+
+    def holder(name):
+        if name == "run":
+            return {}
+        if name == "teacher":
+            return TeacherReplayBuffer(TopKTrajectoryWriter(k=10))
+        return Captured()
+
+    components = {name: holder(name) for name in names}
+    Checkpoint(**components).load(run_dir / "checkpoint", components=list(names))
+    return {name: value.state if isinstance(value, Captured) else value for name, value in components.items()}

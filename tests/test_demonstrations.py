@@ -2,6 +2,8 @@
 from __future__ import annotations
 
 import functools
+import json
+import os
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -18,7 +20,7 @@ from torchrl_sail import (
     load_sb_demonstrations,
     save_demonstrations,
 )
-from torchrl_sail.data.demonstrations import Demonstrations
+from torchrl_sail.data.demonstrations import METADATA_FILE, Demonstrations
 
 HOPPER = "expert_data_no_img_Hopper_scores_1500_episodes_{}.npz"
 CHEETAH = "expert_data_no_img_HalfCheetah_scores_5600_episodes_{}.npz"
@@ -42,6 +44,20 @@ EXPECTED = {
 # (obs dims incl. time feature, action dims)
 DIMS = {"Hopper": (12, 3), "HalfCheetah": (18, 6)}
 
+SHIPPED_TEACHERS = Path(__file__).resolve().parents[1] / "examples" / "teachers"
+# env: (steps, dense return, obs dims incl. time feature, action dims), made by
+# examples/make_teacher.py with seed 0.
+SHIPPED = {
+    "Hopper-v4": (165, 463.60, 12, 3),
+    "Hopper-v5": (179, 444.74, 12, 3),
+    "Walker2d-v4": (301, 423.38, 18, 6),
+    "Walker2d-v5": (301, 553.18, 18, 6),
+    "HalfCheetah-v4": (1000, 1009.32, 18, 6),
+    "HalfCheetah-v5": (1000, 1009.32, 18, 6),
+    "Swimmer-v4": (1000, 41.86, 9, 2),
+    "Swimmer-v5": (1000, 41.86, 9, 2),
+}
+
 
 @functools.lru_cache(maxsize=None)
 def _load(path: str) -> Demonstrations:
@@ -64,14 +80,14 @@ def _make_td(lengths, *, obs_dim=2, fell=True) -> TensorDict:
     n = sum(lengths)
     done = torch.zeros(n, 1, dtype=torch.bool)
     done[torch.tensor(lengths).cumsum(0) - 1] = True
+    obs = torch.arange(n * obs_dim, dtype=torch.float32).view(n, obs_dim)
     return TensorDict(
         {
-            "observation": torch.arange(n * obs_dim, dtype=torch.float32).view(n, obs_dim),
+            "observation": obs,
             "action": torch.linspace(-1, 1, n).unsqueeze(-1),
             "step_count": torch.cat([torch.arange(k) for k in lengths]).unsqueeze(-1),
             "next": {
-                "observation": torch.arange(n * obs_dim, dtype=torch.float32).view(n, obs_dim)
-                + obs_dim,
+                "observation": obs + obs_dim,
                 "reward": torch.arange(1, n + 1, dtype=torch.float32).unsqueeze(-1),
                 "done": done,
                 "terminated": done.clone() if fell else torch.zeros_like(done),
@@ -80,6 +96,13 @@ def _make_td(lengths, *, obs_dim=2, fell=True) -> TensorDict:
         },
         batch_size=[n],
     )
+
+
+def _write_raw(path: Path, td: TensorDict, metadata=None) -> Path:
+    """A dataset directory written without save_demonstrations' checks."""
+    td.memmap(path)
+    (path / METADATA_FILE).write_text(json.dumps(metadata or {}))
+    return path
 
 
 def _write_sb_npz(path, lengths, *, T=1000, time_feature=True, returns=None, drop=()):
@@ -111,433 +134,455 @@ def _write_sb_npz(path, lengths, *, T=1000, time_feature=True, returns=None, dro
     return obs, rewards
 
 
-# ---------------------------------------------------------------- the six teacher files
-@pytest.mark.parametrize("name", sorted(EXPECTED))
-def test_teacher_file_episodes(teacher_dir, name):
-    lengths, returns = EXPECTED[name]
-    data, meta = _loaded(teacher_dir, name)
-    env = "Hopper" if "Hopper" in name else "HalfCheetah"
-    obs_dim, act_dim = DIMS[env]
+class TestPaperTeacherFiles:
+    """The six stable-baselines teacher files of the paper (../shared/data/teachers)."""
 
-    assert meta["n_episodes"] == len(lengths)
-    assert meta["episode_lengths"] == lengths
-    assert meta["env_name"] == env
-    assert meta["source"] == str(teacher_dir / name)
-    np.testing.assert_allclose(meta["episode_returns"], returns, atol=1e-2)
-    assert data.batch_size == torch.Size([sum(lengths)])
-    assert data["observation"].shape == (sum(lengths), obs_dim)
-    assert data["action"].shape == (sum(lengths), act_dim)
-    assert data["observation"].dtype == data["action"].dtype == torch.float32
-    assert data["step_count"].dtype == torch.int64
-    # dense rewards kept: per-episode sums reproduce the recorded returns
-    ends = np.cumsum(lengths)
-    sums = [
-        float(data["next", "reward"][a:b].double().sum())
-        for a, b in zip(np.r_[0, ends[:-1]], ends)
-    ]
-    np.testing.assert_allclose(sums, returns, atol=2e-2)
-    # returns against the README ranges
-    assert min(meta["episode_returns"]) >= min(returns) - 0.01
-    assert max(meta["episode_returns"]) <= max(returns) + 0.01
+    @pytest.mark.parametrize("name", sorted(EXPECTED))
+    def test_episodes_and_returns(self, teacher_dir, name):
+        lengths, returns = EXPECTED[name]
+        data, meta = _loaded(teacher_dir, name)
+        env = "Hopper" if "Hopper" in name else "HalfCheetah"
+        obs_dim, act_dim = DIMS[env]
+
+        assert meta["n_episodes"] == len(lengths)
+        assert meta["episode_lengths"] == lengths
+        assert meta["env_name"] == env
+        assert meta["source"] == str(teacher_dir / name)
+        np.testing.assert_allclose(meta["episode_returns"], returns, atol=1e-2)
+        assert data.batch_size == torch.Size([sum(lengths)])
+        assert data["observation"].shape == (sum(lengths), obs_dim)
+        assert data["action"].shape == (sum(lengths), act_dim)
+        assert data["observation"].dtype == data["action"].dtype == torch.float32
+        assert data["step_count"].dtype == torch.int64
+        # dense rewards kept: per-episode sums reproduce the recorded returns
+        ends = np.cumsum(lengths)
+        sums = [
+            float(data["next", "reward"][a:b].double().sum())
+            for a, b in zip(np.r_[0, ends[:-1]], ends)
+        ]
+        np.testing.assert_allclose(sums, returns, atol=2e-2)
+
+    def test_documented_ranges(self, teacher_dir):
+        h10 = _loaded(teacher_dir, HOPPER.format(10)).metadata
+        assert round(min(h10["episode_returns"]), 1) == 1354.9
+        assert round(max(h10["episode_returns"]), 1) == 1710.7
+        assert min(h10["episode_lengths"]) == 380 and max(h10["episode_lengths"]) == 491
+        c4 = _loaded(teacher_dir, CHEETAH.format(4)).metadata
+        assert round(min(c4["episode_returns"]), 1) == 5999.6
+        assert round(max(c4["episode_returns"]), 1) == 6051.8
+        c10 = _loaded(teacher_dir, CHEETAH.format(10)).metadata
+        assert round(min(c10["episode_returns"]), 1) == 5633.8
+        assert round(max(c10["episode_returns"]), 1) == 6007.2
+        # README: Hopper_4 is the first 4 episodes of Hopper_10
+        h4 = _loaded(teacher_dir, HOPPER.format(4)).data
+        h10d = _loaded(teacher_dir, HOPPER.format(10)).data
+        assert (h4 == h10d[: h4.shape[0]]).all()
+
+    @pytest.mark.parametrize("name", sorted(EXPECTED))
+    def test_time_column_next_obs_and_flags(self, teacher_dir, name):
+        lengths, _ = EXPECTED[name]
+        data, meta = _loaded(teacher_dir, name)
+        raw = _raw(teacher_dir, name)
+        n = sum(lengths)
+        assert meta["time_feature"] is True
+
+        # step_count recomputed independently from the raw episode_starts
+        starts = np.array([bool(np.asarray(x).ravel()[0]) for x in raw["episode_starts"]])
+        step = np.zeros(n, dtype=np.int64)
+        for i in range(1, n):
+            step[i] = 0 if starts[i] else step[i - 1] + 1
+        assert data["step_count"].squeeze(-1).tolist() == step.tolist()
+        torch.testing.assert_close(
+            data["observation"][:, -1].double(),
+            1.0 - data["step_count"].squeeze(-1).double() / 1000,
+            atol=1e-6,
+            rtol=0,
+        )
+        # observations are the file's, bit for bit
+        assert torch.equal(data["observation"], torch.from_numpy(raw["obs"]))
+
+        last = np.cumsum(lengths) - 1
+        inner = np.setdiff1d(np.arange(n), last)
+        assert torch.equal(data["next", "observation"][inner], data["observation"][inner + 1])
+        # final next obs: last obs with the time column advanced to 1 - len/1000
+        final = data["next", "observation"][last]
+        assert torch.equal(final[:, :-1], data["observation"][last, :-1])
+        expected_time = torch.tensor([1 - k / 1000 for k in lengths], dtype=torch.float32)
+        torch.testing.assert_close(final[:, -1], expected_time, atol=1e-6, rtol=0)
+
+        done = data["next", "done"].squeeze(-1)
+        assert torch.nonzero(done).squeeze(-1).tolist() == last.tolist()
+        terminated = data["next", "terminated"].squeeze(-1)
+        truncated = data["next", "truncated"].squeeze(-1)
+        assert torch.equal(done, terminated | truncated)
+        if "Hopper" in name:  # the Hopper teacher fell every time
+            assert torch.equal(terminated, done) and not truncated.any()
+        else:  # HalfCheetah runs into the 1000-step limit
+            assert torch.equal(truncated, done) and not terminated.any()
+            torch.testing.assert_close(final[:, -1], torch.zeros(len(lengths)))
+        assert data["next", "done"].shape == (n, 1)
+        assert data["next", "reward"].shape == (n, 1)
+
+    def test_hopper_ignores_file_next_obs(self, teacher_dir):
+        name = HOPPER.format(4)
+        data, meta = _loaded(teacher_dir, name)
+        raw = _raw(teacher_dir, name)
+        assert "next_obs" in meta["file_keys"]
+        last = np.cumsum(EXPECTED[name][0]) - 1
+        inner = np.setdiff1d(np.arange(len(raw["obs"])), last)
+        # inside episodes the file's next_obs agrees with obs[t+1] ...
+        file_next = torch.from_numpy(raw["next_obs"])
+        assert torch.equal(data["next", "observation"][inner], file_next[inner])
+        # ... but at episode ends it is a reset observation (time 1.0), which we must not use
+        assert np.all(raw["next_obs"][last, -1] == 1.0)
+        assert torch.all(data["next", "observation"][last, -1] < 0.7)
+
+    def test_halfcheetah_without_next_obs(self, teacher_dir):
+        name = CHEETAH.format(1)
+        raw = _raw(teacher_dir, name)
+        assert "next_obs" not in raw
+        data, meta = _loaded(teacher_dir, name)
+        assert "next_obs" not in meta["file_keys"]
+        assert torch.equal(data["next", "observation"][:-1], data["observation"][1:])
+        assert data["next", "truncated"][-1].item() and not data["next", "terminated"].any()
+        # raw actions overshoot +-1 by float32 rounding; loaded ones are clamped, not rescaled
+        assert np.abs(raw["actions"]).max() > 1.0
+        assert data["action"].abs().max().item() == 1.0
+        torch.testing.assert_close(
+            data["action"], torch.from_numpy(raw["actions"]).clamp(-1, 1), atol=0, rtol=0
+        )
+
+    def test_load_demonstrations_dispatches_npz(self, teacher_dir):
+        data, meta = load_demonstrations(teacher_dir / HOPPER.format(1))
+        ref_data, ref_meta = _loaded(teacher_dir, HOPPER.format(1))
+        assert (data == ref_data).all()
+        assert meta == ref_meta
+        assert meta["format"] == "stable_baselines.ExpertDataset"
 
 
-def test_documented_ranges(teacher_dir):
-    h10 = _loaded(teacher_dir, HOPPER.format(10)).metadata
-    assert round(min(h10["episode_returns"]), 1) == 1354.9
-    assert round(max(h10["episode_returns"]), 1) == 1710.7
-    assert min(h10["episode_lengths"]) == 380 and max(h10["episode_lengths"]) == 491
-    c4 = _loaded(teacher_dir, CHEETAH.format(4)).metadata
-    assert round(min(c4["episode_returns"]), 1) == 5999.6
-    assert round(max(c4["episode_returns"]), 1) == 6051.8
-    c10 = _loaded(teacher_dir, CHEETAH.format(10)).metadata
-    assert round(min(c10["episode_returns"]), 1) == 5633.8
-    assert round(max(c10["episode_returns"]), 1) == 6007.2
-    # README: Hopper_4 is the first 4 episodes of Hopper_10
-    h4 = _loaded(teacher_dir, HOPPER.format(4)).data
-    h10d = _loaded(teacher_dir, HOPPER.format(10)).data
-    assert (h4 == h10d[: h4.shape[0]]).all()
+class TestShippedTeachers:
+    """The sub-optimal teachers of examples/teachers, one directory per env."""
+
+    @pytest.mark.parametrize("env", sorted(SHIPPED))
+    def test_load(self, env):
+        steps, ret, obs_dim, act_dim = SHIPPED[env]
+        data, meta = load_demonstrations(SHIPPED_TEACHERS / env)
+        assert meta["env_id"] == env and meta["time_feature"] is True
+        assert data.batch_size == (steps,) and meta["episode_lengths"] == [steps]
+        assert round(meta["episode_returns"][0], 2) == ret
+        assert round(float(data["next", "reward"].double().sum()), 2) == ret
+        check_demonstration_dims(data, observation_dim=obs_dim, action_dim=act_dim)
+        # a full-length episode was truncated, a shorter one terminated (the walker fell)
+        assert data["next", "truncated"][-1].item() == (steps == 1000)
 
 
-@pytest.mark.parametrize("name", sorted(EXPECTED))
-def test_time_column_next_obs_and_flags(teacher_dir, name):
-    lengths, _ = EXPECTED[name]
-    data, meta = _loaded(teacher_dir, name)
-    raw = _raw(teacher_dir, name)
-    n = sum(lengths)
-    assert meta["time_feature"] is True
+class TestLoadSBDemonstrations:
+    """Synthetic files laid out like the paper's: layout rules and clear errors."""
 
-    # step_count recomputed independently from the raw episode_starts
-    starts = np.array([bool(np.asarray(x).ravel()[0]) for x in raw["episode_starts"]])
-    step = np.zeros(n, dtype=np.int64)
-    for i in range(1, n):
-        step[i] = 0 if starts[i] else step[i - 1] + 1
-    assert data["step_count"].squeeze(-1).tolist() == step.tolist()
-    torch.testing.assert_close(
-        data["observation"][:, -1].double(),
-        1.0 - data["step_count"].squeeze(-1).double() / 1000,
-        atol=1e-6,
-        rtol=0,
+    def test_two_short_episodes_by_hand(self, tmp_path):
+        path = tmp_path / "demo.npz"
+        _write_sb_npz(path, [3, 2], T=10)
+        data, meta = load_sb_demonstrations(path, max_episode_steps=10)
+        # rewards linspace(0.5, 1.5, 5) = 0.5, 0.75, 1.0, 1.25, 1.5
+        np.testing.assert_allclose(meta["episode_returns"], [2.25, 2.75])
+        assert meta["episode_lengths"] == [3, 2] and meta["n_episodes"] == 2
+        assert data["step_count"].squeeze(-1).tolist() == [0, 1, 2, 0, 1]
+        assert data["next", "done"].squeeze(-1).tolist() == [False, False, True, False, True]
+        # next time column: 1 - (t + 1)/10, also at the episode ends
+        torch.testing.assert_close(
+            data["next", "observation"][:, -1], torch.tensor([0.9, 0.8, 0.7, 0.9, 0.8])
+        )
+        assert "env_name" not in meta  # not a SAIL-named file
+
+    def test_full_length_episode_is_truncated(self, tmp_path):
+        path = tmp_path / "demo.npz"
+        _write_sb_npz(path, [4, 2], T=4)
+        data, _ = load_sb_demonstrations(path, max_episode_steps=4)
+        assert data["next", "truncated"].squeeze(-1).tolist() == [0, 0, 0, 1, 0, 0]
+        assert data["next", "terminated"].squeeze(-1).tolist() == [0, 0, 0, 0, 0, 1]
+
+    def test_without_time_feature(self, tmp_path):
+        path = tmp_path / "notime.npz"
+        obs, _ = _write_sb_npz(path, [3, 2], T=10, time_feature=False)
+        data, meta = load_sb_demonstrations(path, max_episode_steps=10)
+        assert meta["time_feature"] is False
+        # without a time feature the final next obs is the last obs, untouched
+        assert torch.equal(data["next", "observation"][[2, 4]], torch.from_numpy(obs[[2, 4]]))
+
+    @pytest.mark.parametrize(
+        "kwargs, match",
+        [
+            (dict(drop=("actions",)), r"bad\.npz: missing key 'actions'"),
+            (dict(returns=[1.0, 2.0]), r"bad\.npz: episode 0 has recorded return 1\.0"),
+            (dict(returns=[1.0]), r"bad\.npz: 'episode_returns' has 1 entries .* 2 episodes"),
+        ],
     )
-    # observations are the file's, bit for bit
-    assert torch.equal(data["observation"], torch.from_numpy(raw["obs"]))
+    def test_bad_content(self, tmp_path, kwargs, match):
+        path = tmp_path / "bad.npz"
+        _write_sb_npz(path, [4, 3], **kwargs)
+        with pytest.raises(ValueError, match=match):
+            load_demonstrations(path)
 
-    last = np.cumsum(lengths) - 1
-    inner = np.setdiff1d(np.arange(n), last)
-    assert torch.equal(data["next", "observation"][inner], data["observation"][inner + 1])
-    # final next obs: last obs with the time column advanced to 1 - len/1000
-    final = data["next", "observation"][last]
-    assert torch.equal(final[:, :-1], data["observation"][last, :-1])
-    expected_time = torch.tensor([1 - k / 1000 for k in lengths], dtype=torch.float32)
-    torch.testing.assert_close(final[:, -1], expected_time, atol=1e-6, rtol=0)
+    def test_episode_too_long_and_wrong_time_limit(self, tmp_path):
+        path = tmp_path / "long.npz"
+        _write_sb_npz(path, [6, 2], T=10)
+        with pytest.raises(ValueError, match=r"long\.npz: episode 0 has 6 steps.*steps=5"):
+            load_sb_demonstrations(path, max_episode_steps=5)
+        # wrong T: the last column no longer matches 1 - t/T
+        with pytest.raises(ValueError, match=r"long\.npz: .*not the time feature"):
+            load_sb_demonstrations(path, max_episode_steps=20, time_feature=True)
 
-    done = data["next", "done"].squeeze(-1)
-    assert torch.nonzero(done).squeeze(-1).tolist() == last.tolist()
-    terminated = data["next", "terminated"].squeeze(-1)
-    truncated = data["next", "truncated"].squeeze(-1)
-    assert torch.equal(done, terminated | truncated)
-    if "Hopper" in name:  # the Hopper teacher fell every time
-        assert torch.equal(terminated, done) and not truncated.any()
-    else:  # HalfCheetah runs into the 1000-step limit
-        assert torch.equal(truncated, done) and not terminated.any()
-        torch.testing.assert_close(final[:, -1], torch.zeros(len(lengths)))
-    assert data["next", "done"].shape == (n, 1)
-    assert data["next", "reward"].shape == (n, 1)
+    def test_unreadable_files(self, teacher_dir, tmp_path):
+        cut = tmp_path / "cut.npz"
+        blob = (teacher_dir / HOPPER.format(1)).read_bytes()
+        cut.write_bytes(blob[: len(blob) // 2])
+        garbage = tmp_path / "garbage.npz"
+        garbage.write_bytes(np.random.default_rng(0).bytes(4096))
+        for path in (cut, garbage):
+            with pytest.raises(ValueError, match=f"{path.name}: not a readable .npz"):
+                load_demonstrations(path)
+
+    def test_pickle_named_npz_is_not_unpickled(self, tmp_path):
+        marker = tmp_path / "ran"
+        path = tmp_path / "evil.npz"
+        # a protocol-0 pickle that runs a shell command when unpickled
+        path.write_bytes(b"cos\nsystem\n(S'touch " + str(marker).encode() + b"'\ntR.")
+        with pytest.raises(ValueError, match=r"evil\.npz: not a readable \.npz"):
+            load_demonstrations(path)
+        assert not marker.exists()
+
+    @settings(max_examples=10, deadline=None)
+    @given(lengths=st.lists(st.integers(1, 6), min_size=1, max_size=5), T=st.integers(6, 9))
+    def test_layout_property(self, tmp_path_factory, lengths, T):
+        path = tmp_path_factory.mktemp("prop") / "demo.npz"
+        obs, rewards = _write_sb_npz(path, lengths, T=T)
+        data, meta = load_demonstrations(path, max_episode_steps=T)
+        ends = np.cumsum(lengths) - 1
+        assert meta["episode_lengths"] == lengths
+        assert torch.nonzero(data["next", "done"].squeeze(-1)).squeeze(-1).tolist() == ends.tolist()
+        truncated = [k == T for k in lengths]
+        assert data["next", "truncated"][ends].squeeze(-1).tolist() == truncated
+        assert data["next", "terminated"][ends].squeeze(-1).tolist() == [not x for x in truncated]
+        step = data["step_count"].squeeze(-1)
+        torch.testing.assert_close(data["observation"][:, -1], 1 - step.float() / T)
+        torch.testing.assert_close(data["next", "observation"][:, -1], 1 - (step.float() + 1) / T)
+        assert torch.equal(data["next", "reward"].squeeze(-1), torch.from_numpy(rewards[:, 0]))
+
+        out = path.with_suffix("")
+        save_demonstrations(out, Demonstrations(data, meta))
+        data2, meta2 = load_demonstrations(out)
+        assert meta2 == meta and (data2 == data).all()
 
 
-def test_hopper_ignores_file_next_obs(teacher_dir):
-    name = HOPPER.format(4)
-    data, meta = _loaded(teacher_dir, name)
-    raw = _raw(teacher_dir, name)
-    assert "next_obs" in meta["file_keys"]
-    last = np.cumsum(EXPECTED[name][0]) - 1
-    inner = np.setdiff1d(np.arange(len(raw["obs"])), last)
-    # inside episodes the file's next_obs agrees with obs[t+1] ...
-    file_next = torch.from_numpy(raw["next_obs"])
-    assert torch.equal(data["next", "observation"][inner], file_next[inner])
-    # ... but at episode ends it is a reset observation (time 1.0), which we must not use
-    assert np.all(raw["next_obs"][last, -1] == 1.0)
-    assert torch.all(data["next", "observation"][last, -1] < 0.7)
+class TestSaveDemonstrations:
+    """The project's format: tensordict memmap files plus metadata.json, in a directory."""
 
+    def test_round_trip_teacher_file_is_exact(self, teacher_dir, tmp_path):
+        demos = _loaded(teacher_dir, HOPPER.format(4))
+        path = save_demonstrations(tmp_path / "hopper4", demos)
+        assert path == tmp_path / "hopper4"
+        data, meta = load_demonstrations(path)
+        assert meta == demos.metadata
+        assert meta["source"].endswith(HOPPER.format(4))  # provenance kept
+        assert set(data.keys(True, True)) == set(demos.data.keys(True, True))
+        for key in demos.data.keys(True, True):
+            assert data[key].dtype == demos.data[key].dtype, key
+            assert torch.equal(data[key], demos.data[key]), key
 
-def test_halfcheetah_without_next_obs(teacher_dir):
-    name = CHEETAH.format(1)
-    raw = _raw(teacher_dir, name)
-    assert "next_obs" not in raw
-    data, meta = _loaded(teacher_dir, name)
-    assert "next_obs" not in meta["file_keys"]
-    assert torch.equal(data["next", "observation"][:-1], data["observation"][1:])
-    assert data["next", "truncated"][-1].item() and not data["next", "terminated"].any()
-    # the raw actions overshoot +-1 by float32 rounding; loaded ones are clamped, not rescaled
-    assert np.abs(raw["actions"]).max() > 1.0
-    assert data["action"].abs().max().item() == 1.0
-    torch.testing.assert_close(
-        data["action"], torch.from_numpy(raw["actions"]).clamp(-1, 1), atol=0, rtol=0
+    def test_layout_and_in_memory_result(self, tmp_path):
+        path = save_demonstrations(tmp_path / "demos", _make_td([3, 2]), {"env_id": "Toy-v0"})
+        names = {p.relative_to(path).as_posix() for p in path.rglob("*")}
+        assert {METADATA_FILE, "meta.json", "observation.memmap", "next/done.memmap"} <= names
+        assert json.loads((path / METADATA_FILE).read_text())["env_id"] == "Toy-v0"
+        data, _ = load_demonstrations(path)
+        assert all(type(v) is torch.Tensor for v in data.values(True, True))
+        assert not data.is_locked
+        for file in path.rglob("*.memmap"):  # nothing of the result lives in the files
+            file.write_bytes(b"\x00" * file.stat().st_size)
+        assert torch.equal(data["next", "reward"].squeeze(-1), torch.tensor([1.0, 2, 3, 4, 5]))
+
+    def test_computes_returns_and_lengths(self, tmp_path):
+        td = _make_td([3, 2])
+        metadata = {"env_id": "Toy-v0", "scale": np.float32(0.5)}
+        path = save_demonstrations(tmp_path / "d", td, metadata)
+        data, meta = load_demonstrations(path)
+        assert meta["episode_lengths"] == [3, 2]
+        assert meta["episode_returns"] == [1.0 + 2 + 3, 4.0 + 5]
+        assert meta["env_id"] == "Toy-v0" and meta["scale"] == 0.5
+        assert meta["source"] == str(path)
+        assert (data == td).all()
+
+        # explicit metadata updates a Demonstrations' own; missing lengths are computed
+        demos = Demonstrations(td, {"episode_returns": [0.0, 1.0], "note": "a"})
+        save_demonstrations(path, demos, {"note": "b"})
+        _, meta = load_demonstrations(path)
+        assert meta["episode_returns"] == [0.0, 1.0] and meta["episode_lengths"] == [3, 2]
+        assert meta["note"] == "b"
+
+    @pytest.mark.parametrize(
+        "name, data, metadata, error, match",
+        [
+            ("d.npz", _make_td([3]), None, ValueError, r"d\.npz: '\.npz' names"),
+            ("d", _make_td([3]), {"bad": object()}, TypeError, "JSON"),
+            ("d", _make_td([3, 2])[:4], None, ValueError, "last row is not done"),
+            ("d", {"observation": torch.zeros(1)}, None, TypeError, "Demonstrations or a Tensor"),
+        ],
     )
+    def test_rejects_bad_input(self, tmp_path, name, data, metadata, error, match):
+        with pytest.raises(error, match=match):
+            save_demonstrations(tmp_path / name, data, metadata)
+        assert list(tmp_path.iterdir()) == []
 
+    def test_failed_save_keeps_existing_dataset(self, tmp_path, monkeypatch):
+        path = tmp_path / "demos"
+        good = _make_td([3, 2])
+        save_demonstrations(path, good, {"tag": "good"})
+        memmap = TensorDict.memmap
 
-def test_load_demonstrations_dispatches_npz(teacher_dir):
-    data, meta = load_demonstrations(teacher_dir / HOPPER.format(1))
-    ref_data, ref_meta = _loaded(teacher_dir, HOPPER.format(1))
-    assert (data == ref_data).all()
-    assert meta == ref_meta
-    assert meta["format"] == "stable_baselines.ExpertDataset"
+        def crashing_memmap(self, prefix, *args, **kwargs):
+            memmap(self[:1], prefix, *args, **kwargs)  # some files, then the "crash"
+            raise OSError("disk full")
 
+        monkeypatch.setattr(TensorDict, "memmap", crashing_memmap)
+        with pytest.raises(OSError, match="disk full"):
+            save_demonstrations(path, _make_td([4]), {"tag": "new"})
+        monkeypatch.undo()
 
-# ---------------------------------------------------------------- own format
-def test_round_trip_teacher_file(teacher_dir, tmp_path):
-    demos = _loaded(teacher_dir, HOPPER.format(4))
-    path = save_demonstrations(tmp_path / "hopper4.pt", demos)
-    assert path == tmp_path / "hopper4.pt"
-    raw = torch.load(path, weights_only=True)
-    assert raw["format"] == "torchrl_sail.demonstrations" and raw["version"] == 1
-    data, meta = load_demonstrations(path)
-    assert meta == demos.metadata
-    assert meta["source"].endswith(HOPPER.format(4))  # provenance kept
-    assert set(data.keys(True, True)) == set(demos.data.keys(True, True))
-    for key in demos.data.keys(True, True):
-        assert data[key].dtype == demos.data[key].dtype, key
-        assert torch.equal(data[key], demos.data[key]), key
+        assert [p.name for p in tmp_path.iterdir()] == ["demos"]  # no staging dir left
+        data, meta = load_demonstrations(path)
+        assert meta["tag"] == "good" and (data == good).all()
 
+    def test_failed_swap_restores_existing_dataset(self, tmp_path, monkeypatch):
+        path = tmp_path / "demos"
+        save_demonstrations(path, _make_td([3, 2]), {"tag": "good"})
+        replace = os.replace
 
-def test_save_recomputes_returns_and_lengths(tmp_path):
-    td = _make_td([3, 2])
-    path = tmp_path / "d.pt"
-    save_demonstrations(path, td, {"env_id": "Toy-v0", "scale": np.float32(0.5)})
-    data, meta = load_demonstrations(path)
-    assert meta["episode_lengths"] == [3, 2]
-    assert meta["episode_returns"] == [1.0 + 2 + 3, 4.0 + 5]
-    assert meta["env_id"] == "Toy-v0" and meta["scale"] == 0.5
-    assert meta["source"] == str(path)
-    assert meta["format"] == "torchrl_sail.demonstrations"
-    assert (data == td).all()
+        def failing_replace(src, dst):
+            if Path(src).name.endswith(".staging"):
+                raise OSError("rename failed")
+            replace(src, dst)
 
-    # explicit metadata overrides a Demonstrations' own
-    save_demonstrations(path, Demonstrations(td, {"episode_returns": [0.0, 1.0]}), {"note": "x"})
-    _, meta = load_demonstrations(path)
-    assert meta["episode_returns"] == [0.0, 1.0] and meta["episode_lengths"] == [3, 2]
-    assert meta["note"] == "x"
+        monkeypatch.setattr(os, "replace", failing_replace)
+        with pytest.raises(OSError, match="rename failed"):
+            save_demonstrations(path, _make_td([4]), {"tag": "new"})
+        monkeypatch.undo()
 
+        assert [p.name for p in tmp_path.iterdir()] == ["demos"]
+        assert load_demonstrations(path).metadata["tag"] == "good"
 
-def test_save_rejects_bad_input(tmp_path):
-    td = _make_td([3])
-    with pytest.raises(ValueError, match=r"\.npz"):
-        save_demonstrations(tmp_path / "d.npz", td)
-    with pytest.raises(TypeError, match="JSON"):
-        save_demonstrations(tmp_path / "d.pt", td, {"bad": object()})
-    with pytest.raises(ValueError, match="last row is not done"):
-        save_demonstrations(tmp_path / "d.pt", _make_td([3, 2])[:4])
-    with pytest.raises(TypeError, match="Demonstrations or a TensorDict"):
-        save_demonstrations(tmp_path / "d.pt", {"observation": torch.zeros(1)})
-    assert list(tmp_path.iterdir()) == []
-
-
-def test_atomic_write_keeps_existing_file(tmp_path, monkeypatch):
-    path = tmp_path / "demos.pt"
-    good = _make_td([3, 2])
-    save_demonstrations(path, good, {"tag": "good"})
-    before = path.read_bytes()
-
-    def crashing_save(obj, f, *args, **kwargs):
-        f.write(b"PK\x03\x04 half a file")  # partial content, then the "crash"
-        raise OSError("disk full")
-
-    monkeypatch.setattr(torch, "save", crashing_save)
-    with pytest.raises(OSError, match="disk full"):
+    def test_save_replaces_existing_dataset(self, tmp_path):
+        path = tmp_path / "demos"
+        save_demonstrations(path, _make_td([3, 2]), {"tag": "old"})
         save_demonstrations(path, _make_td([4]), {"tag": "new"})
-    monkeypatch.undo()
-
-    assert path.read_bytes() == before
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["demos.pt"]  # no temp file left
-    data, meta = load_demonstrations(path)
-    assert meta["tag"] == "good" and (data == good).all()
-
-    # a successful save replaces the file
-    save_demonstrations(path, _make_td([4]), {"tag": "new"})
-    assert load_demonstrations(path).metadata["tag"] == "new"
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["demos.pt"]
+        data, meta = load_demonstrations(path)
+        assert meta["tag"] == "new" and meta["episode_lengths"] == [4]
+        assert data.batch_size == (4,)
+        assert [p.name for p in tmp_path.iterdir()] == ["demos"]
 
 
-# ---------------------------------------------------------------- bad files
-def test_missing_file(tmp_path):
-    path = tmp_path / "nope.npz"
-    with pytest.raises(FileNotFoundError, match="nope.npz"):
-        load_demonstrations(path)
-    with pytest.raises(FileNotFoundError, match="nope.npz"):
-        load_sb_demonstrations(path)
-
-
-@pytest.mark.parametrize("suffix", [".npz", ".pt", ".bin"])
-def test_random_bytes(tmp_path, suffix):
-    path = tmp_path / f"garbage{suffix}"
-    path.write_bytes(np.random.default_rng(0).bytes(4096))
-    with pytest.raises(ValueError, match=r"garbage.*not a zip"):
-        load_demonstrations(path)
-
-
-def test_truncated_files(teacher_dir, tmp_path):
-    blob = (teacher_dir / HOPPER.format(1)).read_bytes()
-    path = tmp_path / "cut.npz"
-    path.write_bytes(blob[: len(blob) // 2])
-    with pytest.raises(ValueError, match=r"cut\.npz.*not a zip"):
-        load_demonstrations(path)
-    with pytest.raises(ValueError, match=r"cut\.npz.*not a zip"):
-        load_sb_demonstrations(path)
-
-    good = tmp_path / "good.pt"
-    save_demonstrations(good, _make_td([3]))
-    blob = good.read_bytes()
-    cut = tmp_path / "cut.pt"
-    cut.write_bytes(blob[: len(blob) - 200])
-    with pytest.raises(ValueError, match=r"cut\.pt"):
-        load_demonstrations(cut)
-
-
-def test_corrupt_npz_member(tmp_path):
-    """A zip whose central directory is intact but whose member data is damaged."""
-    path = tmp_path / "damaged.npz"
-    _write_sb_npz(path, [5])
-    blob = bytearray(path.read_bytes())
-    start = blob.index(b"\x93NUMPY")  # first array header
-    blob[start : start + 40] = b"\x00" * 40
-    path.write_bytes(bytes(blob))
-    with pytest.raises(ValueError, match=r"damaged\.npz"):
-        load_demonstrations(path)
-
-
-def test_wrong_format_tag_and_version(tmp_path):
-    path = tmp_path / "other.pt"
-    torch.save({"format": "someone.else", "version": 1, "metadata": {}, "data": {}}, path)
-    with pytest.raises(ValueError, match=r"other\.pt.*format tag 'someone\.else'"):
-        load_demonstrations(path)
-    torch.save({"format": "torchrl_sail.demonstrations", "version": 99, "metadata": {}}, path)
-    with pytest.raises(ValueError, match=r"other\.pt.*version 99"):
-        load_demonstrations(path)
-    torch.save(torch.zeros(3), path)
-    with pytest.raises(ValueError, match=r"other\.pt.*expected a dict"):
-        load_demonstrations(path)
-
-
-def test_pickled_objects_rejected(tmp_path):
-    path = tmp_path / "pickled.pt"
-    torch.save({"format": "torchrl_sail.demonstrations", "version": 1, "x": Path("a")}, path)
-    with pytest.raises(ValueError, match=r"pickled\.pt.*weights_only"):
-        load_demonstrations(path)
-
-
-def _payload(td, **meta):
-    return {
-        "format": "torchrl_sail.demonstrations",
-        "version": 1,
-        "metadata": meta,
-        "data": td.to_dict(),
-    }
-
-
-def test_invalid_project_content(tmp_path):
-    path = tmp_path / "bad.pt"
+def _without(key):
     td = _make_td([2, 2])
-
-    payload = _payload(td)
-    del payload["data"]["action"]
-    torch.save(payload, path)
-    with pytest.raises(ValueError, match=r"bad\.pt.*missing key 'action'"):
-        load_demonstrations(path)
-
-    payload = _payload(td)
-    payload["data"]["next"]["reward"] = torch.zeros(3, 1)
-    torch.save(payload, path)
-    with pytest.raises(ValueError, match=r"bad\.pt.*inconsistent batch sizes"):
-        load_demonstrations(path)
-
-    undone = td.clone()
-    undone["next", "done"][-1] = False
-    undone["next", "terminated"][-1] = False
-    torch.save(_payload(undone), path)
-    with pytest.raises(ValueError, match=r"bad\.pt.*last row is not done"):
-        load_demonstrations(path)
-
-    never = td.clone()
-    for key in ("done", "terminated"):
-        never["next", key].zero_()
-    torch.save(_payload(never), path)
-    with pytest.raises(ValueError, match=r"bad\.pt.*no \('next', 'done'\)"):
-        load_demonstrations(path)
-
-    torch.save(_payload(td, episode_lengths=[3, 1, 0]), path)
-    with pytest.raises(ValueError, match=r"bad\.pt.*episode_lengths"):
-        load_demonstrations(path)
-
-    payload = _payload(td)
-    del payload["metadata"]
-    torch.save(payload, path)
-    with pytest.raises(ValueError, match=r"bad\.pt.*missing key 'metadata'"):
-        load_demonstrations(path)
+    del td[key]
+    return td
 
 
-def test_sb_missing_key_and_bad_returns(tmp_path):
-    path = tmp_path / "noact.npz"
-    _write_sb_npz(path, [4, 3], drop=("actions",))
-    with pytest.raises(ValueError, match=r"noact\.npz.*missing key 'actions'"):
-        load_demonstrations(path)
-
-    path = tmp_path / "badret.npz"
-    _write_sb_npz(path, [4, 3], returns=[1.0, 2.0])
-    with pytest.raises(ValueError, match=r"badret\.npz.*episode 0 .*recorded return 1\.0"):
-        load_demonstrations(path)
-
-    path = tmp_path / "nret.npz"
-    _write_sb_npz(path, [4, 3], returns=[1.0])
-    with pytest.raises(ValueError, match=r"nret\.npz.*1 entries.*2 episodes"):
-        load_demonstrations(path)
+def _with(key, value):
+    td = _make_td([2, 2])
+    td[key] = value
+    return td
 
 
-def test_sb_episode_too_long_and_time_feature(tmp_path):
-    path = tmp_path / "long.npz"
-    _write_sb_npz(path, [6, 2], T=10)
-    with pytest.raises(ValueError, match=r"long\.npz.*episode 0 has 6 steps.*steps=5"):
-        load_sb_demonstrations(path, max_episode_steps=5)
-    # wrong T: the last column no longer matches 1 - t/T
-    with pytest.raises(ValueError, match=r"long\.npz.*not the time feature"):
-        load_sb_demonstrations(path, max_episode_steps=20, time_feature=True)
+class TestLoadDemonstrationsErrors:
+    """Clear errors, naming the file, for paths and contents that are not demonstrations."""
 
-    path = tmp_path / "notime.npz"
-    obs, _ = _write_sb_npz(path, [3, 2], T=10, time_feature=False)
-    data, meta = load_sb_demonstrations(path, max_episode_steps=10)
-    assert meta["time_feature"] is False
-    # without a time feature the final next obs is the last obs, untouched
-    assert torch.equal(data["next", "observation"][[2, 4]], torch.from_numpy(obs[[2, 4]]))
-    assert "env_name" not in meta  # not a SAIL-named file
+    @pytest.mark.parametrize("name", ["nope", "nope.npz", "nope.pt"])
+    def test_missing_path(self, tmp_path, name):
+        with pytest.raises(FileNotFoundError, match=rf"{name}: not demonstrations"):
+            load_demonstrations(tmp_path / name)
 
+    def test_missing_npz_file(self, tmp_path):
+        with pytest.raises(FileNotFoundError, match=r"nope\.npz"):
+            load_sb_demonstrations(tmp_path / "nope.npz")
 
-@settings(max_examples=15, deadline=None)
-@given(
-    lengths=st.lists(st.integers(1, 6), min_size=1, max_size=5),
-    T=st.integers(6, 9),
-)
-def test_sb_layout_property(tmp_path_factory, lengths, T):
-    path = tmp_path_factory.mktemp("prop") / "demo.npz"
-    obs, rewards = _write_sb_npz(path, lengths, T=T)
-    data, meta = load_demonstrations(path, max_episode_steps=T)
-    n = sum(lengths)
-    ends = np.cumsum(lengths) - 1
-    assert meta["episode_lengths"] == lengths
-    np.testing.assert_allclose(
-        meta["episode_returns"],
-        [rewards[e - k + 1 : e + 1].sum(dtype=np.float64) for e, k in zip(ends, lengths)],
-        rtol=1e-6,
+    @pytest.mark.parametrize("kind", ["file", "directory"])
+    def test_wrong_kind_of_path(self, tmp_path, kind):
+        path = tmp_path / "old.pt"
+        if kind == "file":
+            torch.save({"format": "torchrl_sail.demonstrations"}, path)
+        else:
+            _make_td([2]).memmap(path)  # tensordict files without our metadata.json
+        with pytest.raises(ValueError, match=r"old\.pt: not demonstrations; expected .*\.npz.*"
+                           "directory written by save_demonstrations"):
+            load_demonstrations(path)
+
+    @pytest.mark.parametrize(
+        "td, match",
+        [
+            (_without("action"), r"missing key 'action'"),
+            (_without(("next", "truncated")), r"missing key \('next', 'truncated'\)"),
+            (_make_td([2, 2]).reshape(2, 2), r"expected a flat, non-empty \[N\] .*\[2, 2\]"),
+            (
+                _with(("next", "done"), torch.zeros(4, 1)),
+                r"\('next', 'done'\) has dtype torch.float32",
+            ),
+            (
+                _with(("next", "reward"), torch.zeros(4)),
+                r"\('next', 'reward'\) .* shape \(4,\); expected shape \(4, 1\)",
+            ),
+            (
+                _with(("next", "observation"), torch.zeros(4, 3)),
+                r"'observation' \(4, 2\) and \('next', 'observation'\) \(4, 3\) differ",
+            ),
+            (
+                _with(("next", "truncated"), torch.ones(4, 1, dtype=torch.bool)),
+                r"\('next', 'done'\) != terminated \| truncated",
+            ),
+            (_make_td([2, 2])[:3], r"the last row is not done"),
+        ],
+        ids=["no-action", "no-truncated", "not-flat", "float-done", "reward-shape",
+             "next-obs-shape", "done-flags", "last-not-done"],
     )
-    assert torch.nonzero(data["next", "done"].squeeze(-1)).squeeze(-1).tolist() == ends.tolist()
-    truncated = [k == T for k in lengths]
-    assert data["next", "truncated"][ends].squeeze(-1).tolist() == truncated
-    assert data["next", "terminated"][ends].squeeze(-1).tolist() == [not x for x in truncated]
-    step = data["step_count"].squeeze(-1)
-    torch.testing.assert_close(data["observation"][:, -1], 1 - step.float() / T)
-    # next time column is always 1 - (t + 1)/T, inside episodes and at their ends
-    torch.testing.assert_close(data["next", "observation"][:, -1], 1 - (step.float() + 1) / T)
-    assert torch.equal(data["next", "reward"].squeeze(-1), torch.from_numpy(rewards[:, 0]))
-
-    out = path.with_suffix(".pt")
-    save_demonstrations(out, Demonstrations(data, meta))
-    data2, meta2 = load_demonstrations(out)
-    assert meta2 == meta and (data2 == data).all() and data2.batch_size == (n,)
+    def test_invalid_content(self, tmp_path, td, match):
+        path = _write_raw(tmp_path / "bad", td)
+        with pytest.raises(ValueError, match=rf"bad: {match}"):
+            load_demonstrations(path)
 
 
-# ---------------------------------------------------------------- dimension check
-def test_check_dims_messages(teacher_dir):
-    demos = _loaded(teacher_dir, HOPPER.format(1))
-    check_demonstration_dims(demos, observation_dim=12, action_dim=3)  # matches
+class TestCheckDemonstrationDims:
+    def test_messages(self, teacher_dir):
+        demos = _loaded(teacher_dir, HOPPER.format(1))
+        check_demonstration_dims(demos, observation_dim=12, action_dim=3)  # matches
 
-    with pytest.raises(ValueError) as err:
-        check_demonstration_dims(demos, observation_dim=11, action_dim=3)
-    msg = str(err.value)
-    assert "12 dims" in msg and "env has 11" in msg and "enable TimeFeature" in msg
-    assert HOPPER.format(1) in msg  # names the file
+        with pytest.raises(ValueError) as err:
+            check_demonstration_dims(demos, observation_dim=11, action_dim=3)
+        msg = str(err.value)
+        assert "12 dims" in msg and "env has 11" in msg and "enable TimeFeature" in msg
+        assert HOPPER.format(1) in msg  # names the file
 
-    no_time = TensorDict({"observation": torch.zeros(2, 11), "action": torch.zeros(2, 3)}, [2])
-    with pytest.raises(ValueError, match=r"11 dims, env has 12: disable TimeFeature"):
-        check_demonstration_dims(no_time, observation_dim=12)
+        no_time = TensorDict({"observation": torch.zeros(2, 11), "action": torch.zeros(2, 3)}, [2])
+        with pytest.raises(ValueError, match=r"11 dims, env has 12: disable TimeFeature"):
+            check_demonstration_dims(no_time, observation_dim=12)
 
-    with pytest.raises(ValueError, match=r"17.*different env") as err:
-        check_demonstration_dims(demos, observation_dim=17, action_dim=3)
-    assert "TimeFeature" not in str(err.value)
+        with pytest.raises(ValueError, match=r"17.*different env") as err:
+            check_demonstration_dims(demos, observation_dim=17, action_dim=3)
+        assert "TimeFeature" not in str(err.value)
 
-    with pytest.raises(ValueError, match=r"'action' has 3 dims, env action has 6"):
-        check_demonstration_dims(demos.data, observation_dim=12, action_dim=6, source="x.npz")
+        with pytest.raises(ValueError, match=r"\(x\.npz\): 'action' has 3 dims, env action has 6"):
+            check_demonstration_dims(demos.data, observation_dim=12, action_dim=6, source="x.npz")
 
-    with pytest.raises(TypeError, match="observation_dim"):
-        check_demonstration_dims(demos)
+        with pytest.raises(TypeError, match="observation_dim"):
+            check_demonstration_dims(demos)
 
-
-def test_check_dims_from_env_specs(teacher_dir):
-    demos = _loaded(teacher_dir, CHEETAH.format(1))
-    env = SimpleNamespace(
-        observation_spec=Composite(observation=Unbounded(shape=(17,))),
-        action_spec=Bounded(-1.0, 1.0, shape=(6,)),
-    )
-    with pytest.raises(ValueError, match=r"18 dims, env has 17: enable TimeFeature"):
+    def test_from_env_specs(self, teacher_dir):
+        demos = _loaded(teacher_dir, CHEETAH.format(1))
+        env = SimpleNamespace(
+            observation_spec=Composite(observation=Unbounded(shape=(17,))),
+            action_spec=Bounded(-1.0, 1.0, shape=(6,)),
+        )
+        with pytest.raises(ValueError, match=r"18 dims, env has 17: enable TimeFeature"):
+            check_demonstration_dims(demos, env=env)
+        env.observation_spec = Composite(observation=Unbounded(shape=(18,)))
         check_demonstration_dims(demos, env=env)
-    env.observation_spec = Composite(observation=Unbounded(shape=(18,)))
-    check_demonstration_dims(demos, env=env)
-    env.action_spec = Bounded(-1.0, 1.0, shape=(3,))
-    with pytest.raises(ValueError, match=r"6 dims, env action has 3"):
-        check_demonstration_dims(demos, env=env)
+        env.action_spec = Bounded(-1.0, 1.0, shape=(3,))
+        with pytest.raises(ValueError, match=r"6 dims, env action has 3"):
+            check_demonstration_dims(demos, env=env)

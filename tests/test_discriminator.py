@@ -121,12 +121,11 @@ class TestRunningObsNorm:
         for k, v in norm.state_dict().items():
             assert torch.equal(v, before[k])
 
-    def test_bad_shape(self):
-        norm = RunningObsNorm(3)
-        with pytest.raises(ValueError, match=r"trailing shape is \(3,\).*\(4, 2\)"):
-            norm.update(torch.zeros(4, 2))
-        with pytest.raises(ValueError, match="epsilon"):
+    def test_bad_arguments(self):
+        with pytest.raises(ValueError, match="epsilon=0.0"):
             RunningObsNorm(3, epsilon=0.0)
+        with pytest.raises(ValueError, match="min_var=-1"):
+            RunningObsNorm(3, min_var=-1)
 
 
 class TestDiscriminatorNet:
@@ -180,19 +179,6 @@ class TestDiscriminatorNet:
         obs, act = torch.randn(4, 3) * 7, torch.rand(4, 1)
         torch.testing.assert_close(net.features(obs, act), torch.cat([obs, act], -1))
 
-    def test_bad_inputs(self):
-        net = DiscriminatorNet(3, 1, num_cells=(8,))
-        with pytest.raises(
-            ValueError, match=r"observations of shape \[\.\.\., 3\].*\(4, 2\)"
-        ):
-            net(torch.zeros(4, 2), torch.zeros(4, 1))
-        with pytest.raises(ValueError, match=r"actions of shape \[\.\.\., 1\]"):
-            net(torch.zeros(4, 3), torch.zeros(4, 2))
-        with pytest.raises(ValueError, match="leading"):
-            net(torch.zeros(4, 3), torch.zeros(5, 1))
-        with pytest.raises(ValueError, match="observation_dim"):
-            DiscriminatorNet(0, 1)
-
 
 class TestDiscriminator:
     def test_tensordict_face(self):
@@ -241,27 +227,17 @@ class TestDiscriminator:
         # 1 + (2 - 2.5) + 0.5 = 1.0 and (2 - 3) + 4 + 0.5 = 3.5
         assert disc(td)["logit"][:, 0].tolist() == [1.0, 3.5]
         assert "d_logit" not in td.keys()
-        with pytest.raises(ValueError, match="in_keys must be exactly"):
-            Discriminator(3, 2, in_keys=["observation"])
 
-    def test_observation_dtype_must_match_parameters(self):
-        disc = Discriminator(3, 2, num_cells=(8,))
+    def test_float64(self):
+        # a float64 discriminator takes float64 observations; float32 actions are cast
         td = TensorDict(
             observation=torch.randn(4, 3, dtype=torch.float64),
             action=torch.rand(4, 2),
             batch_size=[4],
         )
-        # float64 MuJoCo observations without DoubleToFloat(): a clear error, no cast
-        with pytest.raises(TypeError, match=r"torch\.float64.*torch\.float32.*DoubleToFloat"):
-            disc(td)
-        with pytest.raises(TypeError, match="DoubleToFloat"):
-            disc.net.features(td["observation"], td["action"])
-        # a float64 discriminator takes float64 observations (and refuses float32 ones)
         disc64 = Discriminator(3, 2, num_cells=(8,)).double()
         assert disc64.net.dtype == torch.float64
         assert disc64(td.clone())["d_logit"].dtype == torch.float64
-        with pytest.raises(TypeError, match=r"torch\.float32 but .* torch\.float64"):
-            disc64.net(td["observation"].float(), td["action"])
 
 
 class TestDiscriminatorLoss:
@@ -465,23 +441,24 @@ class TestDiscriminatorLoss:
             loss_fn.set_keys(teacher="x")
         loss_fn.set_keys(is_teacher=None)
         assert loss_fn.tensor_keys.is_teacher == "is_teacher"
+        # a plain TensorDictModule around a DiscriminatorNet works too
+        plain = TensorDictModule(
+            DiscriminatorNet(3, 1, num_cells=(4,)), in_keys=["o", "a"], out_keys=["l"]
+        )
+        loss_fn = DiscriminatorLoss(plain)
+        assert loss_fn.in_keys == ["o", "a", "is_teacher"]
+        out = loss_fn(o=torch.randn(4, 3), a=torch.rand(4, 1), is_teacher=td["source", "teacher"])
+        assert out[0].shape == ()
 
-    def test_bad_inputs(self):
+    def test_one_class_batch_raises(self):
+        # a batch without teacher or without agent rows would give a NaN loss
         disc = Discriminator(3, 1, num_cells=(8,))
         loss_fn = DiscriminatorLoss(disc)
         td = _tagged(torch.randn(4, 3), torch.rand(4, 1), [1, 0, 1, 0])
-        with pytest.raises(KeyError, match="'is_teacher' not found"):
-            loss_fn(td.exclude("is_teacher"))
-        with pytest.raises(KeyError, match="'action' not found"):
-            loss_fn(td.exclude("action"))
         with pytest.raises(ValueError, match=r"4 rows with 'is_teacher'=True and 0"):
             loss_fn(td.set("is_teacher", torch.ones(4, dtype=torch.bool)))
         with pytest.raises(ValueError, match=r"0 rows with 'is_teacher'=True"):
             loss_fn(td.set("is_teacher", torch.zeros(4, dtype=torch.bool)))
-        with pytest.raises(TypeError, match="bool tensor.*torch.int64"):
-            loss_fn(td.set("is_teacher", torch.tensor([1, 0, 1, 0])))
-        with pytest.raises(ValueError, match=r"batch shape \(4,\).*\(4, 1\)"):
-            loss_fn(td.set("is_teacher", torch.tensor([[True], [False]] * 2)))
         # nothing was learnt from the rejected batches
         assert disc.net.obs_norm.count.item() == pytest.approx(0.01)
 
@@ -500,20 +477,6 @@ class TestDiscriminatorLoss:
             torch.count_nonzero(m.bias) == 0 for m in (disc.net.mlp[0], disc.net.mlp[2])
         )
         assert disc.net.obs_norm.count.item() == pytest.approx(4.01)
-
-    def test_wrong_discriminator_type(self):
-        with pytest.raises(TypeError, match="got Linear"):
-            DiscriminatorLoss(nn.Linear(4, 1))
-        bad = TensorDictModule(
-            nn.Linear(4, 1), in_keys=["observation"], out_keys=["d_logit"]
-        )
-        with pytest.raises(TypeError, match="TensorDictModule wrapping Linear"):
-            DiscriminatorLoss(bad)
-        # a plain TensorDictModule around a DiscriminatorNet is accepted
-        ok = TensorDictModule(
-            DiscriminatorNet(3, 1, num_cells=(4,)), in_keys=["o", "a"], out_keys=["l"]
-        )
-        assert DiscriminatorLoss(ok).in_keys == ["o", "a", "is_teacher"]
 
     def test_separates_toy_distributions(self):
         # authors' 256-256 tanh net; ~1 s on one core

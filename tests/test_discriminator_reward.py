@@ -9,11 +9,9 @@ import pytest
 import torch
 import torch.nn.functional as F
 from tensordict import TensorDict
-from tensordict.nn import TensorDictModule
-from torch import nn
-from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+from torchrl.data import LazyTensorStorage, ReplayBuffer, TensorDictReplayBuffer
 from torchrl.data.replay_buffers.samplers import SamplerWithoutReplacement
-from torchrl.envs import Compose, SerialEnv, TransformedEnv
+from torchrl.envs import Compose, ParallelEnv, SerialEnv, TransformedEnv
 from torchrl.envs.utils import check_env_specs
 from torchrl.testing.mocking_classes import ContinuousActionVecMockEnv
 
@@ -44,8 +42,50 @@ def _transitions(n, obs_dim=3, act_dim=1):
     )
 
 
-class TestRewardValues:
-    def test_hand_computed(self):
+def _softplus_logit(disc, td):
+    return F.softplus(disc.net(td["observation"], td["action"])).detach()
+
+
+def _mock_env(out_key="imitation_reward"):
+    disc = Discriminator(OBS_DIM, ACT_DIM, num_cells=(8,))
+    return TransformedEnv(
+        ContinuousActionVecMockEnv(), DiscriminatorReward(disc, out_key=out_key)
+    )
+
+
+class TestDiscriminatorReward:
+    @pytest.mark.parametrize("out_key", ["reward", "imitation_reward"])
+    def test_single_trans_env_check(self, out_key):
+        env = _mock_env(out_key)
+        check_env_specs(env)
+        assert out_key in env.reward_keys
+        assert env.full_reward_spec[out_key].shape == (1,)
+        if out_key != "reward":
+            assert "reward" in env.reward_keys
+
+    def test_serial_trans_env_check(self):
+        check_env_specs(SerialEnv(2, _mock_env))
+
+    def test_parallel_trans_env_check(self):
+        env = ParallelEnv(2, _mock_env, mp_start_method="fork")
+        try:
+            check_env_specs(env)
+        finally:
+            env.close()
+
+    def test_trans_serial_env_check(self):
+        disc = Discriminator(OBS_DIM, ACT_DIM, num_cells=(8,))
+        env = TransformedEnv(
+            SerialEnv(2, ContinuousActionVecMockEnv),
+            DiscriminatorReward(disc, out_key="imitation_reward"),
+        )
+        check_env_specs(env)
+        td = env.rollout(3)
+        assert td["next", "imitation_reward"].shape == (2, 3, 1)
+        torch.testing.assert_close(td["next", "imitation_reward"], _softplus_logit(disc, td))
+
+    def test_transform_no_env(self):
+        # reward = softplus(logit) = -log(1 - D), by hand
         logits = torch.tensor([-20.0, -1.0, 0.0, 1.0, 5.0, 30.0, 200.0])
         td = TensorDict(
             observation=logits.unsqueeze(-1), action=torch.zeros(7, 1), batch_size=[7]
@@ -64,6 +104,58 @@ class TestRewardValues:
         torch.testing.assert_close(
             r.squeeze(-1)[finite], naive[finite], atol=1e-5, rtol=1e-5
         )
+
+    def test_transform_compose(self):
+        disc = Discriminator(3, 1, num_cells=(8,))
+        td = _transitions(6)
+        out = Compose(DiscriminatorReward(disc))(td.clone())
+        assert torch.equal(out["next", "reward"], _softplus_logit(disc, td))
+
+    def test_transform_env(self):
+        env = _mock_env("reward")
+        disc = env.transform.discriminator
+        td = env.rollout(4)
+        torch.testing.assert_close(td["next", "reward"], _softplus_logit(disc, td))
+        assert not td["next", "reward"].requires_grad
+        assert "d_logit" not in td.keys(True)
+
+    @pytest.mark.parametrize("rbclass", [ReplayBuffer, TensorDictReplayBuffer])
+    def test_transform_rb(self, rbclass):
+        disc = Discriminator(3, 1, num_cells=(16,))
+        disc.train()
+        data = _transitions(10)
+        rb = rbclass(
+            storage=LazyTensorStorage(10),
+            sampler=SamplerWithoutReplacement(shuffle=False),
+            batch_size=10,
+        )
+        rb.extend(data)
+        t = DiscriminatorReward(disc)
+        rb.append_transform(t)
+        # append_transform called t.eval(): the transform is in eval mode, D is not
+        assert not t.training
+        assert disc.training and disc.net.training
+        s1 = rb.sample()
+        torch.testing.assert_close(s1["next", "reward"], _softplus_logit(disc, data))
+        # rewards are recomputed with the current discriminator at every sample
+        with torch.no_grad():
+            disc.net.mlp[-1].bias.add_(1.5)
+        s2 = rb.sample()
+        assert (s2["next", "reward"] > s1["next", "reward"]).all()
+        torch.testing.assert_close(s2["next", "reward"], _softplus_logit(disc, data))
+
+    def test_transform_inverse(self):
+        # no inverse: the storage never receives the imitation reward or the logit
+        data = _transitions(10)
+        rb = TensorDictReplayBuffer(storage=LazyTensorStorage(10), batch_size=4)
+        rb.append_transform(
+            DiscriminatorReward(Discriminator(3, 1, num_cells=(8,)), keep_logit=True)
+        )
+        rb.extend(data)
+        rb.sample()
+        stored = rb.storage[:]
+        assert torch.equal(stored["next", "reward"], data["next", "reward"])
+        assert "d_logit" not in stored.keys()
 
     def test_equals_softplus_of_logit(self):
         disc = Discriminator(3, 1, num_cells=(16, 16))
@@ -96,7 +188,7 @@ class TestRewardValues:
         assert "d_logit" not in out.keys()
         torch.testing.assert_close(out["next", "reward"], env_reward)
         torch.testing.assert_close(out["observation"], obs)
-        expected = F.softplus(disc.net(obs, td["action"])).detach()
+        expected = _softplus_logit(disc, out)
         torch.testing.assert_close(out["next", "imitation_reward"], expected)
         nested = DiscriminatorReward(disc, out_key=("sail", "r"))(td)
         torch.testing.assert_close(nested["next", "sail", "r"], expected)
@@ -110,64 +202,12 @@ class TestRewardValues:
         )
         out = DiscriminatorReward(disc)(td)
         assert out["next", "reward"].shape == (2, 6, 1)
-        expected = F.softplus(disc.net(td["observation"], td["action"])).detach()
-        torch.testing.assert_close(out["next", "reward"], expected)
-        # every (batch, time) entry is its own transition: row by row gives the same
+        torch.testing.assert_close(out["next", "reward"], _softplus_logit(disc, td))
+        # every (batch, time) entry is a separate transition: row by row gives the same
         row = F.softplus(disc.net(td["observation"][1, 4], td["action"][1, 4])).detach()
         torch.testing.assert_close(out["next", "reward"][1, 4], row)
 
-    def test_errors(self):
-        with pytest.raises(TypeError, match="got Linear"):
-            DiscriminatorReward(nn.Linear(3, 1))
-        with pytest.raises(TypeError, match="wrapping Linear"):
-            DiscriminatorReward(
-                TensorDictModule(nn.Linear(3, 1), in_keys=["o", "a"], out_keys=["l"])
-            )
-        t = DiscriminatorReward(Discriminator(3, 1, num_cells=(8,)))
-        with pytest.raises(KeyError, match="'action' not found"):
-            t(_transitions(3).exclude("action"))
-
-
-class TestReplayBuffer:
-    def test_rewards_follow_current_discriminator(self):
-        disc = Discriminator(3, 1, num_cells=(16,))
-        disc.train()
-        data = _transitions(10)
-        stored_reward = data["next", "reward"].clone()
-        rb = TensorDictReplayBuffer(
-            storage=LazyTensorStorage(10),
-            sampler=SamplerWithoutReplacement(shuffle=False),
-            batch_size=10,
-        )
-        rb.extend(data)
-        t = DiscriminatorReward(disc)
-        rb.append_transform(t)
-        # append_transform called t.eval(): the transform is in eval mode, D is not
-        assert not t.training
-        assert disc.training and disc.net.training
-
-        s1 = rb.sample()
-        torch.testing.assert_close(
-            s1["next", "reward"],
-            F.softplus(
-                disc.net(data["observation"][s1["index"]], data["action"][s1["index"]])
-            ).detach(),
-        )
-        with torch.no_grad():
-            disc.net.mlp[-1].bias.add_(1.5)
-        s2 = rb.sample()
-        assert torch.equal(s2["index"], s1["index"])
-        assert (s2["next", "reward"] > s1["next", "reward"]).all()
-        torch.testing.assert_close(
-            s2["next", "reward"],
-            F.softplus(disc.net(data["observation"], data["action"])).detach(),
-        )
-        # the storage never receives the imitation reward or the logit
-        stored = rb.storage[:]
-        assert torch.equal(stored["next", "reward"], stored_reward)
-        assert "d_logit" not in stored.keys()
-
-    def test_eval_mode_of_discriminator_also_untouched(self):
+    def test_mode_of_discriminator_untouched(self):
         disc = Discriminator(3, 1, num_cells=(8,))
         disc.eval()
         t = DiscriminatorReward(disc)
@@ -176,6 +216,9 @@ class TestReplayBuffer:
         t.eval()
         disc.train()
         Compose(t).eval()
+        assert disc.training
+        env = TransformedEnv(ContinuousActionVecMockEnv(), DiscriminatorReward(disc))
+        env.eval()
         assert disc.training
 
     def test_shared_with_loss(self):
@@ -198,37 +241,6 @@ class TestReplayBuffer:
         assert not torch.allclose(r0, r1)
         assert t.clone().discriminator is disc
 
-
-class TestEnv:
-    @pytest.mark.parametrize("out_key", ["reward", "imitation_reward"])
-    def test_single_env(self, out_key):
-        disc = Discriminator(OBS_DIM, ACT_DIM, num_cells=(8,))
-        env = TransformedEnv(
-            ContinuousActionVecMockEnv(), DiscriminatorReward(disc, out_key=out_key)
-        )
-        check_env_specs(env)
-        assert out_key in env.reward_keys
-        assert env.full_reward_spec[out_key].shape == (1,)
-        td = env.rollout(4)
-        expected = F.softplus(disc.net(td["observation"], td["action"])).detach()
-        torch.testing.assert_close(td["next", out_key], expected)
-        assert not td["next", out_key].requires_grad
-        assert "d_logit" not in td.keys(True)
-        if out_key != "reward":
-            assert "reward" in env.reward_keys
-
-    def test_serial_env(self):
-        disc = Discriminator(OBS_DIM, ACT_DIM, num_cells=(8,))
-        env = TransformedEnv(
-            SerialEnv(2, ContinuousActionVecMockEnv),
-            DiscriminatorReward(disc, out_key="imitation_reward"),
-        )
-        check_env_specs(env)
-        td = env.rollout(3)
-        assert td["next", "imitation_reward"].shape == (2, 3, 1)
-        expected = F.softplus(disc.net(td["observation"], td["action"])).detach()
-        torch.testing.assert_close(td["next", "imitation_reward"], expected)
-
     def test_reward_spec_dtype_follows_discriminator(self):
         env = TransformedEnv(
             ContinuousActionVecMockEnv(dtype=torch.float64),
@@ -240,19 +252,7 @@ class TestEnv:
         assert env.full_reward_spec["imitation_reward"].dtype == torch.float64
         check_env_specs(env)
         assert env.rollout(2)["next", "imitation_reward"].dtype == torch.float64
-        env = TransformedEnv(
-            ContinuousActionVecMockEnv(),
-            DiscriminatorReward(
-                Discriminator(OBS_DIM, ACT_DIM, num_cells=(8,)), out_key="imitation_reward"
-            ),
-        )
-        assert env.full_reward_spec["imitation_reward"].dtype == torch.float32
-
-    def test_env_eval_does_not_touch_discriminator(self):
-        disc = Discriminator(OBS_DIM, ACT_DIM, num_cells=(8,))
-        env = TransformedEnv(ContinuousActionVecMockEnv(), DiscriminatorReward(disc))
-        env.eval()
-        assert disc.training
+        assert _mock_env().full_reward_spec["imitation_reward"].dtype == torch.float32
 
 
 if __name__ == "__main__":

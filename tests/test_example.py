@@ -7,9 +7,9 @@ import time
 
 import pytest
 import torch
-from example_runner import run, scalar, start
+from example_runner import run, saved, scalar, start
 
-from torchrl_sail import make_sail_env, TopKTeacherReplayBuffer
+from torchrl_sail import make_sail_env
 
 HOPPER = "expert_data_no_img_Hopper_scores_1500_episodes_1.npz"
 CHEETAH = "expert_data_no_img_HalfCheetah_scores_5600_episodes_1.npz"
@@ -51,8 +51,9 @@ def test_smoke_hopper_outputs(tmp_path, teacher_dir):
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 5000
     assert (run_dir / "config.yaml").exists()
     assert any((run_dir / "wandb").glob("offline-run-*"))
-    state = torch.load(run_dir / "checkpoint.pt", weights_only=False)
-    assert state["counters"]["frames"] == 3000 and len(state["replay"]["data"]["action"]) == 3000
+    state = saved(run_dir, "run", "replay")
+    assert state["run"]["frames"] == 3000 and state["run"]["gradient_steps"] == 150
+    assert state["replay"]["size"] == 3000 and len(state["replay"]["data"]["action"]) == 3000
 
 
 def test_resume_restores_state(tmp_path, teacher_dir):
@@ -60,7 +61,9 @@ def test_resume_restores_state(tmp_path, teacher_dir):
     common = ["env=Hopper-v4", f"teacher.path={teacher_dir / HOPPER}", "checkpoint.every_frames=1000",
               "logger.backends=[csv]", *TINY]
     run(run_dir, *common, "collector.total_frames=2000")
-    saved = torch.load(run_dir / "checkpoint.pt", weights_only=False)
+    names = ("run", "replay", "teacher", "alpha", "loss", "discriminator", "optim_actor", "optim_critic",
+             "optim_discriminator")
+    before = saved(run_dir, *names)
 
     # A run folder with a checkpoint is never silently overwritten.
     proc = run(run_dir, *common, "collector.total_frames=2000", check=False)
@@ -68,25 +71,20 @@ def test_resume_restores_state(tmp_path, teacher_dir):
 
     # Resuming with nothing left to collect restores and re-saves the same state.
     run(run_dir, *common, "collector.total_frames=2000", "resume=true")
-    restored = torch.load(run_dir / "checkpoint.pt", weights_only=False)
-    assert restored["counters"] == saved["counters"]
-    for key in saved["replay"]["data"]:
-        torch.testing.assert_close(restored["replay"]["data"][key], saved["replay"]["data"][key])
-    buffers = []
-    for state in (saved, restored):
-        buffer = TopKTeacherReplayBuffer(k=10)
-        buffer.load_state_dict(state["teacher"])
-        buffers.append(buffer)
-    assert buffers[0].window == buffers[1].window and buffers[0].threshold == buffers[1].threshold == 148.0
-    assert buffers[0].num_offered == buffers[1].num_offered > 0
-    assert (buffers[0].transitions() == buffers[1].transitions()).all()
-    assert restored["alpha_scheduler"] == saved["alpha_scheduler"]
-    torch.testing.assert_close(restored["loss"]["alpha"], saved["loss"]["alpha"])
-    for name in ("actor", "critic", "discriminator"):
-        steps = [s["step"] for s in saved["optimizers"][name]["state"].values()]
-        assert steps and steps == [s["step"] for s in restored["optimizers"][name]["state"].values()]
-    for key, value in saved["loss"].items():
-        torch.testing.assert_close(restored["loss"][key], value)
+    after = saved(run_dir, *names)
+    assert after["run"] == before["run"] and before["run"]["frames"] == 2000
+    torch.testing.assert_close(after["replay"], before["replay"], rtol=0, atol=0)
+    teachers = before["teacher"].writer, after["teacher"].writer
+    assert teachers[0].window == teachers[1].window and teachers[0].threshold == teachers[1].threshold == 148.0
+    assert teachers[0].num_offered == teachers[1].num_offered > 0
+    assert torch.equal(before["teacher"].storage.get(teachers[0].stored_rows()).to_tensordict().get("observation"),
+                       after["teacher"].storage.get(teachers[1].stored_rows()).to_tensordict().get("observation"))
+    assert after["alpha"] == before["alpha"] == {"alpha": 0.5, "switched_at_frame": None}
+    for name in ("loss", "discriminator"):
+        torch.testing.assert_close(after[name], before[name], rtol=0, atol=0)
+    for name in ("optim_actor", "optim_critic", "optim_discriminator"):
+        steps = [s["step"] for s in before[name]["state"].values()]
+        assert steps and steps == [s["step"] for s in after[name]["state"].values()]
 
     # Resuming with a larger budget continues the same curve.
     run(run_dir, *common, "collector.total_frames=3000", "resume=true")
@@ -112,7 +110,7 @@ def test_resume_after_kill_continues_the_same_curve(tmp_path, teacher_dir):
             break
         time.sleep(0.02)
     assert proc.wait(60) == -signal.SIGKILL, f"the run ended before it could be killed: {proc.stderr.read()[-3000:]}"
-    killed_at = torch.load(run_dir / "checkpoint.pt", weights_only=False)["counters"]["frames"]
+    killed_at = saved(run_dir, "run")["run"]["frames"]
     assert killed_at == 2000, "the kill must land between the 2000- and 4000-frame checkpoints"
     assert [f for f, _ in scalar(run_dir, "eval/return")] == [1000, 2000, 3000]
 
@@ -148,7 +146,7 @@ def test_bad_input_fails_before_training(tmp_path, teacher_dir, overrides, messa
     proc = run(tmp_path / "run", *overrides, "collector.total_frames=1000", check=False)
     assert proc.returncode != 0
     assert message in proc.stderr, proc.stderr[-2000:]
-    assert not (tmp_path / "run" / "checkpoint.pt").exists()
+    assert not (tmp_path / "run" / "checkpoint").exists()
 
 
 def test_resume_with_other_env_is_refused(tmp_path, teacher_dir):
@@ -162,11 +160,11 @@ def test_resume_with_other_env_is_refused(tmp_path, teacher_dir):
 
 def test_corrupt_checkpoint_is_reported(tmp_path, teacher_dir):
     run_dir = tmp_path / "run"
-    run_dir.mkdir()
-    (run_dir / "checkpoint.pt").write_bytes(b"not a checkpoint")
+    (run_dir / "checkpoint").mkdir(parents=True)
+    (run_dir / "checkpoint" / "manifest.json").write_text("not a checkpoint")
     proc = run(run_dir, "env=Hopper-v4", f"teacher.path={teacher_dir / HOPPER}", "resume=true",
                "collector.total_frames=1000", check=False)
-    assert proc.returncode != 0 and "checkpoint.pt is unreadable" in proc.stderr
+    assert proc.returncode != 0 and "checkpoint is unreadable" in proc.stderr
 
 
 def test_multiprocess_collector(tmp_path, teacher_dir):
@@ -180,7 +178,7 @@ def test_multiprocess_collector(tmp_path, teacher_dir):
     # A [2 workers, 250] batch is flattened worker by worker: rows 0 and 250 are each
     # worker's first reset. Worker i is seeded by collector.set_seed(seed=0): 0, then the
     # seed env.set_seed returns, so both starts are reproducible and differ.
-    obs = torch.load(run_dir / "checkpoint.pt", weights_only=False)["replay"]["data"]["observation"]
+    obs = saved(run_dir, "replay")["replay"]["data"]["observation"]
     seed = 0
     for row in (0, 250):
         env = make_sail_env("Hopper-v4", max_episode_steps=1000)

@@ -18,8 +18,7 @@ import pytest
 import torch
 
 from example_runner import run, scalar
-from torchrl_sail import make_sail_env, save_demonstrations
-from torchrl_sail.data._keys import TRANSITION_KEYS
+from torchrl_sail import make_sail_env, save_demonstrations, TRANSITION_KEYS
 
 pytestmark = pytest.mark.filterwarnings("ignore:.*is out of date.*")
 
@@ -56,11 +55,11 @@ def weak_teacher(path):
 
 
 def test_sail_surpasses_weak_teacher(tmp_path):
-    teacher_return = weak_teacher(tmp_path / "teacher.pt")
+    teacher_return = weak_teacher(tmp_path / "teacher")
     assert teacher_return == 18.0  # seeded: the documented teacher
 
     run_dir = tmp_path / "run"
-    run(run_dir, *BUDGET, f"teacher.path={tmp_path / 'teacher.pt'}", "seed=0")
+    run(run_dir, *BUDGET, f"teacher.path={tmp_path / 'teacher'}", "seed=0")
     summary = json.loads((run_dir / "summary.json").read_text())
 
     assert summary["teacher_return"] == teacher_return

@@ -28,12 +28,13 @@ from torchrl_sail import (
     DiscriminatorReward,
     MixedReplayBuffer,
     SAILLoss,
+    TeacherReplayBuffer,
     TimeFeature,
-    TopKTeacherReplayBuffer,
+    TopKTrajectoryWriter,
+    TRANSITION_KEYS,
     check_demonstration_dims,
     load_demonstrations,
 )
-from torchrl_sail.data._keys import TRANSITION_KEYS
 
 pytestmark = pytest.mark.filterwarnings("ignore:.*is out of date.*")
 
@@ -79,9 +80,9 @@ def test_sail_pipeline_one_iteration(teacher_dir):
     demos = DelayedRewardTransform().forward(demos)
     assert demos["next", "reward"].sum().item() == math.floor(0.1 * 1480.68823242)
     assert demos["next", "reward"][:-1].eq(0).all()
-    teacher = TopKTeacherReplayBuffer(k=10)
+    teacher = TeacherReplayBuffer(TopKTrajectoryWriter(k=10))
     assert teacher.add_demonstrations(demos) == 1
-    assert teacher.threshold == 148.0
+    assert teacher.writer.threshold == 148.0
 
     # Collection: a random-warm-up collector; every transition goes to the agent replay,
     # every finished trajectory to the promotion test.
@@ -108,14 +109,14 @@ def test_sail_pipeline_one_iteration(teacher_dir):
     collector.shutdown()
     assert len(agent) == 400
     # Random Hopper episodes are far below the 1480-return teacher: offered, not promoted.
-    assert num_episodes > 0 and teacher.num_offered == num_episodes
-    assert teacher.num_promoted == 0 and teacher.threshold == 148.0
+    assert num_episodes > 0 and teacher.writer.num_offered == num_episodes
+    assert teacher.writer.num_promoted == 0 and teacher.writer.threshold == 148.0
 
     # Mixing: exact 128 + 128 split, rewards recomputed by the current D at sample time.
     disc = Discriminator(12, 3)
     reward_transform = DiscriminatorReward(disc)
     mixer = MixedReplayBuffer(teacher, agent, transform=reward_transform)
-    batch = mixer.sample(128, 128)
+    batch = mixer.sample(256, teacher_fraction=0.5)
     assert batch["is_teacher"].sum().item() == 128 and batch["is_teacher"][:128].all()
     # Only transition keys reach the learner: no dense return, no collector bookkeeping.
     assert set(batch.keys(True, True)) == set(TRANSITION_KEYS) | {"is_teacher"}
@@ -158,14 +159,14 @@ def test_sail_pipeline_one_iteration(teacher_dir):
 
     # Adaptive step: a trajectory beating C is promoted and the dynamic rule drops alpha to 0.
     scheduler = AlphaScheduler(loss, mode="dynamic", initial=0.5)
-    assert scheduler.step(frames=400, num_promoted=teacher.num_promoted) == 0.5
+    assert scheduler.step(frames=400, num_promoted=teacher.writer.num_promoted) == 0.5
     better = demos.clone()
     better["next", "reward"][-1] = 200.0
-    assert teacher.offer(better)
-    assert teacher.num_promoted == 1 and teacher.threshold == 148.0
-    assert scheduler.step(frames=400, num_promoted=teacher.num_promoted) == 0.0
+    teacher.extend(better)
+    assert teacher.writer.num_promoted == 1 and teacher.writer.threshold == 148.0
+    assert scheduler.step(frames=400, num_promoted=teacher.writer.num_promoted) == 0.0
     assert float(loss.alpha) == 0.0 and scheduler.switched_at_frame == 400
-    # With alpha = 0 the batch is all agent rows and SAILLoss is plain TD3 on them.
-    batch = mixer.sample(0, 256)
+    # alpha acts through the batch composition: with alpha = 0 the batch is all agent rows.
+    batch = mixer.sample(256, teacher_fraction=float(loss.alpha))
     assert not batch["is_teacher"].any()
     assert torch.isfinite(loss(batch)["loss_qvalue"])

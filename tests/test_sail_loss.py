@@ -1,4 +1,7 @@
-"""Tests for SAILLoss (objectives/sail.py) and AlphaScheduler (objectives/alpha.py)."""
+"""Tests for SAILLoss (objectives/sail.py) and AlphaScheduler (objectives/alpha.py).
+
+The weighted form (``mixing="weights"``) is tested against hand-written references; the
+default batch form must be exactly TorchRL's TD3Loss."""
 from __future__ import annotations
 
 import argparse
@@ -49,6 +52,8 @@ def make_nets():
 
 def make_loss(cls=SAILLoss, *, perturb_targets=True, **kwargs):
     kwargs.setdefault("loss_function", "l2")
+    if cls is SAILLoss:
+        kwargs.setdefault("mixing", "weights")
     actor, critic = make_nets()
     loss = cls(actor, critic, action_spec=SPEC, **kwargs)
     loss.make_value_estimator(gamma=GAMMA)
@@ -71,9 +76,9 @@ def copy_params(dst, src):
     assert set(result.missing_keys) <= {"alpha"}
 
 
-def make_batch(n_teacher, n_self, *, seed=0, tag_key="is_teacher"):
+def make_batch(n_teacher, n_agent, *, seed=0, tag_key="is_teacher"):
     g = torch.Generator().manual_seed(seed)
-    b = n_teacher + n_self
+    b = n_teacher + n_agent
     terminated = torch.rand(b, 1, generator=g) < 0.3
     tag = torch.zeros(b, dtype=torch.bool)
     tag[:n_teacher] = True
@@ -165,7 +170,23 @@ def reference(loss, batch, alpha, noise):
 # ------------------------------------------------------------------ SAILLoss math
 
 
-def test_alpha0_equals_td3_on_self_rows():
+@pytest.mark.parametrize("alpha", [0.0, 0.3, 1.0])
+def test_batch_mixing_is_exactly_td3(alpha):
+    # mixing="batch": alpha acts through the batch composition, the loss is TD3Loss itself
+    sail = make_loss(alpha=alpha, mixing="batch", policy_noise=0.0)
+    td3 = make_loss(TD3Loss, policy_noise=0.0, perturb_targets=False)
+    copy_params(td3, sail)
+    batch = make_batch(3, 5, seed=21)
+    out_s, out_t = sail(batch.clone()), td3(batch.exclude("is_teacher"))
+    for key in ("loss_qvalue", "loss_actor"):
+        torch.testing.assert_close(out_s[key], out_t[key], rtol=0, atol=0)
+    assert_close_all(grads(out_s["loss_qvalue"], q_params(sail)), grads(out_t["loss_qvalue"], q_params(td3)),
+                     rtol=0, atol=0)
+    assert "is_teacher" not in sail.in_keys and float(out_s["alpha"]) == pytest.approx(alpha)
+    assert sail(batch.exclude("is_teacher"))["loss_qvalue"] == out_s["loss_qvalue"]  # no tag needed
+
+
+def test_alpha0_equals_td3_on_agent_rows():
     sail = make_loss(alpha=0.0, policy_noise=0.0)
     td3 = make_loss(TD3Loss, policy_noise=0.0, perturb_targets=False)
     copy_params(td3, sail)
@@ -189,23 +210,12 @@ def test_alpha0_equals_td3_on_self_rows():
     assert float(sail_in["td_error"][:3].sum()) > 0
 
 
-def test_alpha0_without_tag_is_plain_td3():
-    sail = make_loss(alpha=0.0, policy_noise=0.0)
-    td3 = make_loss(TD3Loss, policy_noise=0.0, perturb_targets=False)
-    copy_params(td3, sail)
-    batch = make_batch(0, 6).exclude("is_teacher")
-    out_s, out_t = sail(batch.clone()), td3(batch.clone())
-    torch.testing.assert_close(out_s["loss_qvalue"], out_t["loss_qvalue"])
-    torch.testing.assert_close(out_s["loss_actor"], out_t["loss_actor"])
-    assert math.isnan(float(out_s["pred_value_teacher"]))
-
-
 def test_alpha1_only_depends_on_teacher_rows():
     loss = make_loss(alpha=1.0)  # default target policy noise, seeded below
     batch = make_batch(4, 3, seed=1)
     other = make_batch(4, 3, seed=2)
-    changed_self = batch.clone()
-    changed_self[4:] = other[4:]
+    changed_agent = batch.clone()
+    changed_agent[4:] = other[4:]
     changed_teacher = batch.clone()
     changed_teacher[:4] = other[:4]
 
@@ -217,7 +227,7 @@ def test_alpha1_only_depends_on_teacher_rows():
         return out, g
 
     out_a, g_a = run(batch)
-    out_b, g_b = run(changed_self)
+    out_b, g_b = run(changed_agent)
     torch.testing.assert_close(out_a["loss_qvalue"], out_b["loss_qvalue"])
     torch.testing.assert_close(out_a["loss_actor"], out_b["loss_actor"])
     assert_close_all(g_a, g_b)
@@ -227,11 +237,11 @@ def test_alpha1_only_depends_on_teacher_rows():
     assert not torch.allclose(out_a["loss_actor"], out_c["loss_actor"])
 
 
-@pytest.mark.parametrize("n_teacher,n_self", [(4, 4), (3, 5)])
-def test_alpha_half_matches_hand_reference(n_teacher, n_self):
+@pytest.mark.parametrize("n_teacher,n_agent", [(4, 4), (3, 5)])
+def test_alpha_half_matches_hand_reference(n_teacher, n_agent):
     loss = make_loss(alpha=0.5, policy_noise=0.6, noise_clip=0.5)
-    batch = make_batch(n_teacher, n_self, seed=3)
-    b = n_teacher + n_self
+    batch = make_batch(n_teacher, n_agent, seed=3)
+    b = n_teacher + n_agent
     torch.manual_seed(11)
     out = loss(batch.clone())
     torch.manual_seed(11)  # value_loss draws randn_like(action) before anything else
@@ -251,12 +261,12 @@ def test_alpha_half_matches_hand_reference(n_teacher, n_self):
 
 
 @pytest.mark.parametrize(
-    "alpha,n_teacher,n_self",
+    "alpha,n_teacher,n_agent",
     [(0.3, 2, 6), (0.8, 5, 1), (0.5, 1, 7), (1.0, 3, 0), (0.0, 0, 4)],
 )
-def test_unequal_group_sizes_use_per_group_means(alpha, n_teacher, n_self):
+def test_unequal_group_sizes_use_per_group_means(alpha, n_teacher, n_agent):
     loss = make_loss(alpha=alpha, policy_noise=0.0)
-    batch = make_batch(n_teacher, n_self, seed=4)
+    batch = make_batch(n_teacher, n_agent, seed=4)
     actor_rows, critic_rows = td3_per_row(loss, batch)
     tag = batch["is_teacher"]
 
@@ -264,8 +274,8 @@ def test_unequal_group_sizes_use_per_group_means(alpha, n_teacher, n_self):
         total = torch.zeros(())
         if n_teacher:
             total = total + alpha / n_teacher * rows[tag].sum()
-        if n_self:
-            total = total + (1 - alpha) / n_self * rows[~tag].sum()
+        if n_agent:
+            total = total + (1 - alpha) / n_agent * rows[~tag].sum()
         return total
 
     out = loss(batch.clone())
@@ -345,9 +355,10 @@ def test_masked_rows_are_left_out_of_the_counts():
         + (1 - alpha) * critic_rows[~tag & mask].mean()
     )
     torch.testing.assert_close(loss(batch.clone())["loss_qvalue"], expected)
-    batch["collector", "mask"] = torch.tensor([False, False, False, True, True, True, True])
-    with pytest.raises(ValueError, match="no \\(valid\\) teacher row"):
-        loss(batch.clone())
+    # a group with no valid row contributes nothing: the agent mean alone
+    mask = torch.tensor([False, False, False, True, True, True, True])
+    batch["collector", "mask"] = mask
+    torch.testing.assert_close(loss(batch.clone())["loss_qvalue"], critic_rows[mask].mean())
 
 
 def test_outputs_and_td_error():
@@ -357,13 +368,13 @@ def test_outputs_and_td_error():
     out = loss(td)
     td3_keys = {"loss_actor", "loss_qvalue", "pred_value", "state_action_value_actor",
                 "next_state_value", "target_value"}
-    assert td3_keys | {"alpha", "pred_value_teacher", "pred_value_self"} == set(out.keys())
-    assert set(loss.out_keys) == set(out.keys())
+    assert td3_keys | {"alpha", "pred_value_teacher", "pred_value_agent"} == set(out.keys())
+    assert set(make_loss(mixing="batch")(batch.clone()).keys()) == td3_keys | {"alpha"} == set(loss.out_keys)
     assert td["td_error"].shape == (8,)
     pred = out["pred_value"].mean(0)
     tag = batch["is_teacher"]
     torch.testing.assert_close(out["pred_value_teacher"], pred[tag].mean())
-    torch.testing.assert_close(out["pred_value_self"], pred[~tag].mean())
+    torch.testing.assert_close(out["pred_value_agent"], pred[~tag].mean())
     assert not out["alpha"].requires_grad
     loss.alpha = 0.0  # the logged value is a copy, not a view of the buffer
     assert float(out["alpha"]) == 0.5
@@ -398,29 +409,15 @@ def test_alpha_out_of_range_at_construction(bad):
         SAILLoss(actor, critic, action_spec=SPEC, alpha=bad)
 
 
-@pytest.mark.parametrize("bad", ["0.5", True, None])
-def test_alpha_wrong_type_at_construction(bad):
-    actor, critic = make_nets()
-    with pytest.raises(TypeError, match="alpha"):
-        SAILLoss(actor, critic, action_spec=SPEC, alpha=bad)
-
-
-def test_alpha_assignment_is_in_place_and_validated():
+def test_alpha_assignment_is_in_place():
     loss = make_loss(alpha=1)  # an int must still give a float buffer
     buf = loss.alpha
     assert buf.dtype == torch.float32
     loss.alpha = 0.25
     assert loss.alpha is buf and float(buf) == 0.25
-    loss.alpha = torch.tensor(0.75)
+    loss.alpha = 0.75
     assert loss.alpha is buf and float(buf) == 0.75
     assert "alpha" in dict(loss.named_buffers())
-    bad_values = [(1.2, ValueError), (-1e-3, ValueError), (True, TypeError), ("x", TypeError)]
-    for bad, err in bad_values:
-        with pytest.raises(err, match="alpha"):
-            loss.alpha = bad
-    assert float(loss.alpha) == 0.75
-    with pytest.raises(ValueError, match="alpha"):
-        loss.alpha = torch.tensor([0.1, 0.2])
     # round-trips through the state dict like any buffer
     other = make_loss(alpha=0.5, perturb_targets=False)
     other.load_state_dict(loss.state_dict())
@@ -435,37 +432,17 @@ def test_loss_function_defaults_to_l2():
 # ------------------------------------------------------------------ bad batches and keys
 
 
-def test_missing_tag_with_positive_alpha_raises():
-    loss = make_loss(alpha=0.5)
-    with pytest.raises(KeyError, match="is_teacher.*MixedReplayBuffer"):
-        loss(make_batch(2, 2).exclude("is_teacher"))
+def test_weights_need_the_tag():
+    with pytest.raises(KeyError, match="is_teacher"):
+        make_loss(alpha=0.5)(make_batch(2, 2).exclude("is_teacher"))
 
 
-def test_empty_groups_raise():
-    with pytest.raises(ValueError, match="no \\(valid\\) teacher row"):
-        make_loss(alpha=0.5)(make_batch(0, 4))
-    with pytest.raises(ValueError, match="no \\(valid\\) self row"):
-        make_loss(alpha=0.5)(make_batch(4, 0))
-    with pytest.raises(ValueError, match="no \\(valid\\) self row"):
-        make_loss(alpha=0.0)(make_batch(4, 0))
-    # alpha = 1 with only teacher rows and alpha = 0 with only self rows are fine
-    assert torch.isfinite(make_loss(alpha=1.0)(make_batch(4, 0))["loss_qvalue"])
-    assert torch.isfinite(make_loss(alpha=0.0)(make_batch(0, 4))["loss_qvalue"])
-
-
-def test_bad_tag_dtype_and_shape():
-    loss = make_loss(alpha=0.5)
+def test_tag_with_a_trailing_dim_is_accepted():
+    loss = make_loss(alpha=0.5, policy_noise=0.0)
     batch = make_batch(2, 2)
-    batch["is_teacher"] = batch["is_teacher"].long()
-    with pytest.raises(TypeError, match="bool"):
-        loss(batch)
-    batch = make_batch(2, 2)
-    batch["is_teacher"] = batch["is_teacher"].unsqueeze(-1)  # [B, 1] is accepted
-    assert torch.isfinite(loss(batch)["loss_qvalue"])
-    batch = make_batch(2, 2)
-    batch.set("is_teacher", torch.ones(4, 2, dtype=torch.bool))
-    with pytest.raises(ValueError, match="batch shape"):
-        loss(batch)
+    ref = loss(batch.clone())["loss_qvalue"]
+    batch["is_teacher"] = batch["is_teacher"].unsqueeze(-1)
+    torch.testing.assert_close(loss(batch)["loss_qvalue"], ref)
 
 
 def test_truncated_rows_bootstrap_unless_done_is_terminal():
@@ -494,6 +471,7 @@ def test_in_keys_order_is_td3_then_tag():
     assert len(set(loss.in_keys)) == len(loss.in_keys)
     loss.set_keys(is_teacher="src")
     assert loss.in_keys == [*td3.in_keys, "src"]
+    assert make_loss(mixing="batch").in_keys == td3.in_keys
 
 
 def test_set_keys_is_teacher():
@@ -503,7 +481,7 @@ def test_set_keys_is_teacher():
     assert "src" in loss.in_keys and "is_teacher" not in loss.in_keys
     out = loss(make_batch(2, 3, seed=13, tag_key="src"))
     torch.testing.assert_close(out["loss_qvalue"], ref["loss_qvalue"])
-    with pytest.raises(KeyError, match="'src'"):
+    with pytest.raises(KeyError, match='"src"'):
         loss(make_batch(2, 3, seed=13))
     loss.set_keys(is_teacher=None)  # back to the default
     assert loss.tensor_keys.is_teacher == "is_teacher"
@@ -604,14 +582,8 @@ def test_scheduler_state_dict_round_trip():
     fresh.load_state_dict(saved)
     assert fresh.alpha == 0.0 and holder.alpha == 0.0 and fresh.switched_at_frame == 200
     assert fresh.state_dict() == state
-    # progress checks survive the round trip
-    with pytest.raises(ValueError, match="non-decreasing"):
-        fresh.step(frames=150, num_promoted=1)
-    with pytest.raises(ValueError, match="mode"):
-        AlphaScheduler(_Holder(), mode="constant").load_state_dict(state)
-    with pytest.raises(KeyError, match="switched_at_frame"):
-        partial = {k: v for k, v in state.items() if k != "switched_at_frame"}
-        AlphaScheduler(_Holder()).load_state_dict(partial)
+    # the switch is never undone after a restore
+    assert fresh.step(frames=300, num_promoted=1) == 0.0 and fresh.switched_at_frame == 200
 
 
 def _roundtrip(obj):
@@ -624,36 +596,13 @@ def _roundtrip(obj):
 
 
 @pytest.mark.parametrize(
-    "kwargs,err,match",
-    [
-        ({"mode": "anneal"}, ValueError, "mode"),
-        ({"initial": 1.5}, ValueError, "initial"),
-        ({"final": -0.1}, ValueError, "final"),
-        ({"initial": "0.5"}, TypeError, "initial"),
-        ({"mode": "linear"}, ValueError, "anneal_frames"),
-        ({"mode": "linear", "anneal_frames": 0}, ValueError, "anneal_frames"),
-        ({"mode": "linear", "anneal_frames": 1.5}, ValueError, "anneal_frames"),
-        ({"mode": "dynamic", "anneal_frames": 100}, ValueError, "anneal_frames"),
-    ],
+    "kwargs,match",
+    [({"mode": "anneal"}, "mode"), ({"initial": 1.5}, "initial"), ({"final": -0.1}, "final"),
+     ({"mode": "linear"}, "anneal_frames"), ({"mode": "linear", "anneal_frames": 0}, "anneal_frames")],
 )
-def test_scheduler_validation(kwargs, err, match):
-    with pytest.raises(err, match=match):
+def test_scheduler_validation(kwargs, match):
+    with pytest.raises(ValueError, match=match):
         AlphaScheduler(_Holder(), **kwargs)
-
-
-def test_scheduler_step_validation():
-    with pytest.raises(TypeError, match="has no 'alpha'"):
-        AlphaScheduler(object())
-    sched = AlphaScheduler(_Holder())
-    with pytest.raises(ValueError, match="frames must be non-negative"):
-        sched.step(frames=-1, num_promoted=0)
-    with pytest.raises(TypeError, match="num_promoted"):
-        sched.step(frames=0, num_promoted=1.0)
-    with pytest.raises(TypeError):
-        sched.step(10, 0)  # keyword-only
-    sched.step(frames=10, num_promoted=3)
-    with pytest.raises(ValueError, match="cumulative number of promoted"):
-        sched.step(frames=20, num_promoted=1)
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""Data: the top-K teacher buffer, teacher/agent batch mixing, demonstration files."""
+"""Data: the teacher buffer and its writers, teacher/agent batch mixing, demonstration files."""
 from torchrl_sail.data.demonstrations import (
     check_demonstration_dims,
     Demonstrations,
@@ -6,13 +6,23 @@ from torchrl_sail.data.demonstrations import (
     load_sb_demonstrations,
     save_demonstrations,
 )
+from torchrl_sail.data.keys import TRANSITION_KEYS
 from torchrl_sail.data.mixed_buffer import MixedReplayBuffer
-from torchrl_sail.data.teacher_buffer import TopKTeacherReplayBuffer
+from torchrl_sail.data.teacher_buffer import (
+    FIFOTrajectoryWriter,
+    TeacherReplayBuffer,
+    TopKTrajectoryWriter,
+    TrajectoryWriter,
+)
 
 __all__ = [
     "Demonstrations",
+    "FIFOTrajectoryWriter",
     "MixedReplayBuffer",
-    "TopKTeacherReplayBuffer",
+    "TRANSITION_KEYS",
+    "TeacherReplayBuffer",
+    "TopKTrajectoryWriter",
+    "TrajectoryWriter",
     "check_demonstration_dims",
     "load_demonstrations",
     "load_sb_demonstrations",

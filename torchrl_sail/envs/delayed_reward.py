@@ -15,13 +15,7 @@ import torch
 from tensordict import TensorDictBase, unravel_key
 from tensordict.utils import expand_as_right, NestedKey
 from torchrl.data.tensor_specs import Composite, TensorSpec, Unbounded
-from torchrl.envs.common import EnvBase
-from torchrl.envs.transforms import (
-    Compose,
-    DTypeCastTransform,
-    StepCounter,
-    Transform,
-)
+from torchrl.envs.transforms import Transform
 from torchrl.envs.transforms.utils import _get_reset
 
 __all__ = ["DelayedRewardTransform"]
@@ -31,7 +25,6 @@ _ROUNDINGS = ("floor", "none")
 # flooring: binary floats make e.g. ``0.3 * 10 == 2.9999999999999996``, which would floor
 # to 2. 1e-12 is far below the resolution of a float32 reward (~6e-8 relative).
 _SNAP_RTOL = 1e-12
-_DONE_NAMES = ("done", "terminated", "truncated")
 
 
 class DelayedRewardTransform(Transform):
@@ -56,17 +49,14 @@ class DelayedRewardTransform(Transform):
     in ``float64`` (so 1000 float32 rewards floor like their exact sum); the emitted
     reward keeps the dtype and shape of the reward spec.
 
-    Where to put it in a :class:`~torchrl.envs.Compose`: after ``DoubleToFloat`` (which
-    would otherwise cast the float64 running return to float32) and after any transform
-    that sets ``done`` (e.g. ``StepCounter(max_steps)``, whose truncation must release the
-    reward). Both misplacements are detected: a ``ValueError`` is raised when such a
-    transform comes *after* this one in the same ``Compose`` (checked when the transform
-    is put in a ``Compose`` and again when the env builds its specs, so a later
-    ``append_transform`` is caught too; transforms of an outer ``TransformedEnv`` wrapping
-    this env are not seen). To also log the dense return under another key, put
-    ``RewardSum(in_keys=["reward"], out_keys=["dense_return"])`` *before* this transform
-    (torchrl 0.14.1's ``RewardSum`` needs the explicit ``in_keys`` when ``out_keys`` is
-    given); the final sums are equal either way.
+    .. note:: **Placement in a** :class:`~torchrl.envs.Compose`. Put this transform
+        after ``DoubleToFloat`` (which would otherwise cast the float64 running return
+        to float32 and change the floor) and after any transform that sets ``done``,
+        e.g. ``StepCounter(max_steps)``: a ``done`` set after this transform ran is not
+        seen, and that episode ends with reward 0. To also log the dense return under
+        another key, put ``RewardSum(in_keys=["reward"], out_keys=["dense_return"])``
+        *before* this transform (torchrl 0.14.1's ``RewardSum`` needs the explicit
+        ``in_keys`` when ``out_keys`` is given); the final sums are equal either way.
 
     Offline, calling the transform (:meth:`forward`) on a batch of **complete**
     trajectories ``[*, T]`` gives exactly the rewards the env mode gives on the same data
@@ -85,8 +75,9 @@ class DelayedRewardTransform(Transform):
         done_key (NestedKey, optional): the end-of-episode flag. Defaults to ``"done"``.
         return_key (NestedKey, optional): where the running dense return (float64) is
             written. Defaults to ``"episode_return"``.
-        reset_keys (list of NestedKey, optional): reset entries used to zero the running
-            return; discovered from the parent env when ``None`` (as in ``RewardSum``).
+        reset_keys (list of NestedKey, optional): the reset entry (one key) used to zero
+            the running return; discovered from the parent env when ``None`` (as in
+            ``RewardSum``).
 
     Examples:
         >>> import torch
@@ -127,24 +118,16 @@ class DelayedRewardTransform(Transform):
         return_key: NestedKey = "episode_return",
         reset_keys: Sequence[NestedKey] | None = None,
     ) -> None:
-        if isinstance(scale, bool) or not isinstance(scale, (int, float)):
-            raise TypeError(
-                f"scale must be a positive real number, got {scale!r} "
-                f"({type(scale).__name__})."
-            )
-        if not (scale > 0 and scale < float("inf")):
+        if not 0 < scale < float("inf"):
             raise ValueError(f"scale must be finite and > 0, got {scale!r}.")
         if rounding not in _ROUNDINGS:
-            raise ValueError(
-                f"rounding must be one of {_ROUNDINGS}, got {rounding!r}: use 'floor' for "
-                "the paper's r_e = floor(scale * R) or 'none' for r_e = scale * R."
-            )
+            raise ValueError(f"rounding must be one of {_ROUNDINGS}, got {rounding!r}.")
         reward_key = unravel_key(reward_key)
         return_key = unravel_key(return_key)
         if return_key == reward_key:
+            # The learner reads reward_key: the dense return must not end up there.
             raise ValueError(
-                f"return_key and reward_key must differ (both are {reward_key!r}): the "
-                "dense return must not be written where the learner reads the reward."
+                f"return_key and reward_key must differ, both are {reward_key!r}."
             )
         super().__init__(in_keys=[reward_key], out_keys=[reward_key, return_key])
         self.scale = float(scale)
@@ -161,17 +144,10 @@ class DelayedRewardTransform(Transform):
             parent = self.parent
             if parent is None:
                 raise TypeError(
-                    f"{type(self).__name__}: reset_keys were not provided and no parent "
-                    "env was found. Pass reset_keys=['_reset'] (or your env's reset key) "
-                    "when using the transform without a container env."
+                    "reset_keys not provided and no parent env found: pass "
+                    "reset_keys=['_reset'] when using the transform without an env."
                 )
             reset_keys = list(parent._filtered_reset_keys)
-            if len(reset_keys) != 1:
-                raise ValueError(
-                    f"{type(self).__name__} tracks one reward but the env has reset keys "
-                    f"{reset_keys}; pass the one matching reward_key={self.reward_key!r} "
-                    "as reset_keys=[...]."
-                )
             self._reset_keys = reset_keys
         return reset_keys
 
@@ -181,88 +157,7 @@ class DelayedRewardTransform(Transform):
             if isinstance(value, (str, tuple)):
                 value = [value]
             value = [unravel_key(v) for v in value]
-            if len(value) != 1:
-                raise ValueError(
-                    f"{type(self).__name__} expects exactly one reset key, got {value}."
-                )
         self._reset_keys = value
-
-    def set_container(self, container: Transform | EnvBase) -> None:
-        super().set_container(container)
-        self._check_placement()
-
-    def _transforms_after(self) -> list[Transform]:
-        """The transforms that run after this one, in every enclosing ``Compose``.
-
-        Walks the container chain through ``__dict__`` only: :attr:`parent` would build
-        the parent env, which may not be complete yet when ``set_container`` runs.
-        """
-        after = []
-        child = self
-        container_ref = self.__dict__.get("_container", None)
-        while container_ref is not None:
-            container = container_ref()
-            if not isinstance(container, Compose):
-                break
-            siblings = list(container.transforms)
-            index = next((i for i, t in enumerate(siblings) if t is child), None)
-            if index is None:
-                # Mid-edit of the Compose (e.g. __setitem__): nothing reliable to scan.
-                break
-            after.extend(_flatten(siblings[index + 1 :]))
-            child = container
-            container_ref = container.__dict__.get("_container", None)
-        return after
-
-    def _sets_done(self, transform: Transform) -> bool:
-        if isinstance(transform, StepCounter):
-            # Without max_steps it only counts; with update_done=False it leaves done alone.
-            return transform.max_steps is not None and transform.update_done
-        done_keys = {self.done_key}
-        for key in transform.__dict__.get("_out_keys", None) or []:
-            key = unravel_key(key)
-            leaf = key if isinstance(key, str) else key[-1]
-            if key in done_keys or leaf in _DONE_NAMES:
-                return True
-        return False
-
-    def _casts_return(self, transform: Transform) -> bool:
-        if not isinstance(transform, DTypeCastTransform):
-            return False
-        if transform.dtype_in != torch.float64 or transform.dtype_out == torch.float64:
-            return False
-        # No explicit in_keys: every float64 entry of the specs is cast, ours included.
-        in_keys = transform.__dict__.get("_in_keys", None)
-        return in_keys is None or self.return_key in [unravel_key(k) for k in in_keys]
-
-    def _check_placement(self) -> None:
-        """Raises if a later transform of the same ``Compose`` breaks the delayed reward.
-
-        A done set after this transform ran is never seen by it, so those episodes
-        would silently end with reward 0; a float64 -> float32 cast after it would round
-        the running return the floor is computed from.
-        """
-        name = type(self).__name__
-        problems = []
-        for transform in self._transforms_after():
-            label = _describe(transform)
-            if self._sets_done(transform):
-                problems.append(
-                    f"{label} comes after {name} in the Compose and can set "
-                    f"{self.done_key!r}/'truncated' after the delayed reward was computed, "
-                    "so the episodes it ends would get reward 0. Put "
-                    f"{label} before {name} in the Compose."
-                )
-            if self._casts_return(transform):
-                problems.append(
-                    f"{label} comes after {name} in the Compose and would cast the "
-                    f"float64 running return {self.return_key!r} to "
-                    f"{transform.dtype_out}, losing the precision floor(scale * R) needs. "
-                    f"Put {label} before {name} in the Compose, or give it explicit "
-                    f"in_keys that do not include {self.return_key!r}."
-                )
-        if problems:
-            raise ValueError(" ".join(problems))
 
     def _delayed_value(self, episode_return: torch.Tensor) -> torch.Tensor:
         """Maps float64 dense returns to ``g(scale * R)`` (still float64)."""
@@ -272,19 +167,6 @@ class DelayedRewardTransform(Transform):
             close = (value - nearest).abs() <= _SNAP_RTOL * nearest.abs().clamp_min(1.0)
             value = torch.where(close, nearest, value).floor()
         return value
-
-    @staticmethod
-    def _done_like(done: torch.Tensor, reward: torch.Tensor, done_key) -> torch.Tensor:
-        done = done.bool()
-        if done.ndim < reward.ndim:
-            done = expand_as_right(done, reward)
-        try:
-            return done.expand_as(reward)
-        except RuntimeError as err:
-            raise ValueError(
-                f"The done entry {done_key!r} of shape {tuple(done.shape)} cannot be "
-                f"broadcast to the reward shape {tuple(reward.shape)}."
-            ) from err
 
     def _reset(
         self, tensordict: TensorDictBase, tensordict_reset: TensorDictBase
@@ -307,28 +189,13 @@ class DelayedRewardTransform(Transform):
     def _step(
         self, tensordict: TensorDictBase, next_tensordict: TensorDictBase
     ) -> TensorDictBase:
-        reward = next_tensordict.get(self.reward_key, None)
-        if reward is None:
-            raise KeyError(
-                f"{type(self).__name__}: reward entry {self.reward_key!r} not found in the "
-                "step output; set reward_key to the env's reward key."
-            )
-        done = next_tensordict.get(self.done_key, None)
-        if done is None:
-            raise KeyError(
-                f"{type(self).__name__}: done entry {self.done_key!r} not found in the "
-                "step output; set done_key to the env's done key."
-            )
-        prev = tensordict.get(self.return_key, None)
-        if prev is None:
-            prev = torch.zeros(reward.shape, dtype=torch.float64, device=reward.device)
-        episode_return = prev + reward.to(torch.float64)
-        done = self._done_like(done, reward, self.done_key)
-        delayed = torch.where(
-            done, self._delayed_value(episode_return), 0.0
-        ).to(reward.dtype)
+        reward = next_tensordict[self.reward_key]
+        # 0.0 when the input was not produced by reset (as RewardSum does).
+        episode_return = tensordict.get(self.return_key, 0.0) + reward.to(torch.float64)
+        done = _done_like(next_tensordict[self.done_key], reward)
+        delayed = torch.where(done, self._delayed_value(episode_return), 0.0)
         next_tensordict.set(self.return_key, episode_return)
-        next_tensordict.set(self.reward_key, delayed)
+        next_tensordict.set(self.reward_key, delayed.to(reward.dtype))
         return next_tensordict
 
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
@@ -348,66 +215,35 @@ class DelayedRewardTransform(Transform):
         Returns:
             the same tensordict, updated.
         """
-        if tensordict.batch_dims == 0:
-            raise ValueError(
-                f"{type(self).__name__}.forward needs trajectories with a time dimension "
-                f"(batch shape [*, T]); got batch_size={tuple(tensordict.batch_size)}."
-            )
         names = tensordict.names
         time_dim = names.index("time") if "time" in names else tensordict.batch_dims - 1
         reward_key = unravel_key(("next", self.reward_key))
-        done_key = unravel_key(("next", self.done_key))
-        reward = tensordict.get(reward_key, None)
-        if reward is None:
-            raise KeyError(
-                f"{type(self).__name__}.forward: dense reward {reward_key!r} not found in "
-                "the tensordict; set reward_key to the key of the dense reward."
-            )
-        done = tensordict.get(done_key, None)
-        if done is None:
-            raise KeyError(
-                f"{type(self).__name__}.forward: {done_key!r} not found in the "
-                "tensordict; the episode ends are needed to split the trajectories."
-            )
-        done = self._done_like(done, reward, done_key)
+        reward = tensordict[reward_key]
+        done = _done_like(tensordict[unravel_key(("next", self.done_key))], reward)
         episode_return = _segment_cumsum(
             reward.to(torch.float64).movedim(time_dim, -1),
             done.movedim(time_dim, -1),
         ).movedim(-1, time_dim)
-        delayed = torch.where(
-            done, self._delayed_value(episode_return), 0.0
-        ).to(reward.dtype)
+        delayed = torch.where(done, self._delayed_value(episode_return), 0.0)
         tensordict.set(unravel_key(("next", self.return_key)), episode_return)
-        tensordict.set(reward_key, delayed)
+        tensordict.set(reward_key, delayed.to(reward.dtype))
         return tensordict
 
     def _return_spec(self) -> Unbounded:
-        parent = self.parent
-        reward_spec = parent.full_reward_spec
-        if self.reward_key not in parent.reward_keys:
-            raise KeyError(
-                f"{type(self).__name__}: reward_key {self.reward_key!r} is not in the env "
-                f"reward keys {parent.reward_keys}."
-            )
-        spec = reward_spec[self.reward_key]
+        spec = self.parent.full_reward_spec[self.reward_key]
         return Unbounded(shape=spec.shape, dtype=torch.float64, device=spec.device)
 
-    def _add_return_spec(self, spec: Composite) -> Composite:
-        spec[self.return_key] = self._return_spec()
-        return spec
-
     def transform_observation_spec(self, observation_spec: TensorSpec) -> TensorSpec:
-        # Specs are rebuilt after every append/insert, so this also catches transforms
-        # added to the Compose after set_container ran.
-        self._check_placement()
-        return self._add_return_spec(observation_spec)
+        observation_spec[self.return_key] = self._return_spec()
+        return observation_spec
 
     def transform_input_spec(self, input_spec: TensorSpec) -> TensorSpec:
         input_spec = super().transform_input_spec(input_spec)
         state_spec = input_spec["full_state_spec"]
         if state_spec is None:
             state_spec = Composite(shape=input_spec.shape, device=input_spec.device)
-        input_spec["full_state_spec"] = self._add_return_spec(state_spec)
+        state_spec[self.return_key] = self._return_spec()
+        input_spec["full_state_spec"] = state_spec
         return input_spec
 
     def transform_reward_spec(self, reward_spec: TensorSpec) -> TensorSpec:
@@ -428,26 +264,18 @@ class DelayedRewardTransform(Transform):
         )
 
 
-def _flatten(transforms: Sequence[Transform]) -> list[Transform]:
-    flat = []
-    for transform in transforms:
-        if isinstance(transform, Compose):
-            flat.extend(_flatten(list(transform.transforms)))
-        else:
-            flat.append(transform)
-    return flat
-
-
-def _describe(transform: Transform) -> str:
-    if isinstance(transform, StepCounter):
-        return f"StepCounter(max_steps={transform.max_steps})"
-    return f"{type(transform).__name__}()"
+def _done_like(done: torch.Tensor, reward: torch.Tensor) -> torch.Tensor:
+    """``done`` as a bool tensor of the reward's shape (it may lack trailing dims)."""
+    done = done.bool()
+    if done.ndim < reward.ndim:
+        done = expand_as_right(done, reward)
+    return done.expand_as(reward)
 
 
 def _segment_cumsum(values: torch.Tensor, done: torch.Tensor) -> torch.Tensor:
     """Running sums along the last dim, restarting after each ``done``.
 
-    Every episode is scattered into its own zero-padded row and summed with one
+    Every episode is scattered into a separate zero-padded row and summed with one
     ``cumsum``, so the additions happen in the same order as a step-by-step accumulator
     (bit-identical float64 results, unlike differences of a global cumsum). Memory is
     ``n_episodes * longest_episode``.

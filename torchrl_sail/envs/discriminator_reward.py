@@ -27,10 +27,8 @@ import torch.nn.functional as F
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModule
 from tensordict.utils import NestedKey, unravel_key
-from torchrl.data.tensor_specs import Composite, TensorSpec, Unbounded
+from torchrl.data.tensor_specs import TensorSpec, Unbounded
 from torchrl.envs.transforms import Transform
-
-from torchrl_sail.modules.discriminator import _check_discriminator
 
 __all__ = ["DiscriminatorReward"]
 
@@ -122,7 +120,6 @@ class DiscriminatorReward(Transform):
         out_key: NestedKey = "reward",
         keep_logit: bool = False,
     ) -> None:
-        _check_discriminator(discriminator, type(self).__name__)
         super().__init__(in_keys=list(discriminator.in_keys), out_keys=[out_key])
         self.discriminator = discriminator
         self.keep_logit = keep_logit
@@ -146,13 +143,6 @@ class DiscriminatorReward(Transform):
         return self
 
     def _logit(self, tensordict: TensorDictBase) -> torch.Tensor:
-        for key in self.discriminator.in_keys:
-            if key not in tensordict.keys(include_nested=True):
-                raise KeyError(
-                    f"{type(self).__name__}: key {key!r} not found in the tensordict "
-                    f"(keys: {sorted(tensordict.keys(True, True), key=str)}). The "
-                    f"discriminator reads {self.discriminator.in_keys}."
-                )
         # a selected (shallow) copy: the discriminator writes its logit there, not
         # into the caller's tensordict
         inputs = tensordict.select(*self.discriminator.in_keys)
@@ -180,19 +170,8 @@ class DiscriminatorReward(Transform):
         next_tensordict.set(self.out_key, F.softplus(logit))
         return next_tensordict
 
-    def _call(self, next_tensordict: TensorDictBase) -> TensorDictBase:
-        raise RuntimeError(
-            f"{type(self).__name__} needs (s_t, a_t) and is computed in _step; _call "
-            f"(which only sees the next tensordict) is not supported."
-        )
-
     def transform_reward_spec(self, reward_spec: TensorSpec) -> TensorSpec:
         out_key = self.out_key
-        if not isinstance(reward_spec, Composite):
-            raise TypeError(
-                f"{type(self).__name__} expects a Composite reward spec, got "
-                f"{type(reward_spec).__name__}."
-            )
         if out_key in reward_spec.keys(True, True):
             return reward_spec
         shape = (*reward_spec.shape, 1)

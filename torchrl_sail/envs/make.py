@@ -1,7 +1,7 @@
 """The SAIL environment stack: a gymnasium task in the paper's delayed-reward setting.
 
 One factory so that the training example, the teacher recorder, the evaluation env and
-users' own pipelines build exactly the same observation layout (with the time feature the
+users' pipelines build exactly the same observation layout (with the time feature the
 paper's teacher files carry) and the same trajectory-wise reward.
 """
 from __future__ import annotations

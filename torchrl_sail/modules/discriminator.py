@@ -1,7 +1,7 @@
 """The SAIL state-action discriminator D(s, a) and its running observation normaliser.
 
 SAIL (like GAIL/DAC) trains a binary classifier that separates teacher transitions
-(label 1) from the agent's own transitions (label 0). Its logit gives the imitation
+(label 1) from agent transitions (label 0). Its logit gives the imitation
 reward the critic is trained on (see
 :class:`~torchrl_sail.DiscriminatorReward`); it is trained by
 :class:`~torchrl_sail.DiscriminatorLoss`.
@@ -95,12 +95,12 @@ class RunningObsNorm(nn.Module):
     ) -> None:
         super().__init__()
         shape = (shape,) if isinstance(shape, int) else tuple(shape)
-        if epsilon <= 0:
+        if epsilon <= 0 or min_var < 0:
+            # epsilon is the prior count (0 gives NaN statistics), min_var the variance floor
             raise ValueError(
-                f"RunningObsNorm: epsilon must be > 0 (it is the prior count), got {epsilon}."
+                f"RunningObsNorm needs epsilon > 0 and min_var >= 0, got epsilon={epsilon} "
+                f"and min_var={min_var}."
             )
-        if min_var < 0:
-            raise ValueError(f"RunningObsNorm: min_var must be >= 0, got {min_var}.")
         self.shape = torch.Size(shape)
         self.min_var = float(min_var)
         self.register_buffer("sum", torch.zeros(shape, dtype=torch.float64))
@@ -118,15 +118,6 @@ class RunningObsNorm(nn.Module):
         mean = self.mean
         return (self.sumsq / self.count - mean.square()).clamp_min(self.min_var).sqrt()
 
-    def _check_shape(self, x: torch.Tensor) -> None:
-        n = len(self.shape)
-        if x.shape[x.ndim - n :] != self.shape or x.ndim < n:
-            raise ValueError(
-                f"RunningObsNorm expects observations whose trailing shape is "
-                f"{tuple(self.shape)}, got a tensor of shape {tuple(x.shape)}. Build the "
-                f"normaliser with the observation dimension of your data."
-            )
-
     @torch.no_grad()
     def update(self, x: torch.Tensor) -> None:
         """Adds a batch of observations to the running statistics.
@@ -135,7 +126,6 @@ class RunningObsNorm(nn.Module):
             x (torch.Tensor): observations of shape ``[*batch, *shape]``; every leading
                 dimension counts as a batch dimension.
         """
-        self._check_shape(x)
         x = x.detach().reshape(-1, *self.shape).to(torch.float64)
         self.sum.add_(x.sum(0))
         self.sumsq.add_(x.square().sum(0))
@@ -211,14 +201,6 @@ class DiscriminatorNet(nn.Module):
         normalize_observations: bool = True,
     ) -> None:
         super().__init__()
-        for name, dim in (
-            ("observation_dim", observation_dim),
-            ("action_dim", action_dim),
-        ):
-            if isinstance(dim, bool) or not isinstance(dim, int) or dim <= 0:
-                raise ValueError(
-                    f"DiscriminatorNet: {name} must be a positive int, got {dim!r}."
-                )
         self.observation_dim = observation_dim
         self.action_dim = action_dim
         self.obs_norm = (
@@ -251,40 +233,13 @@ class DiscriminatorNet(nn.Module):
     def features(self, observation: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
         """Returns the MLP input ``concat(normalise(observation), action)``.
 
-        Raises:
-            TypeError: if ``observation`` does not have the parameters' dtype (e.g.
-                float64 MuJoCo observations without ``DoubleToFloat()``).
+        Observations are not cast: they must have the parameters' dtype (:attr:`dtype`;
+        add ``DoubleToFloat()`` to a float64 MuJoCo env and its demonstrations).
 
         Args:
             observation (torch.Tensor): ``[*batch, observation_dim]``.
             action (torch.Tensor): ``[*batch, action_dim]``.
         """
-        if observation.shape[-1:] != (self.observation_dim,):
-            raise ValueError(
-                f"DiscriminatorNet expects observations of shape [..., {self.observation_dim}], "
-                f"got {tuple(observation.shape)}."
-            )
-        if action.shape[-1:] != (self.action_dim,):
-            raise ValueError(
-                f"DiscriminatorNet expects actions of shape [..., {self.action_dim}], "
-                f"got {tuple(action.shape)}."
-            )
-        if observation.shape[:-1] != action.shape[:-1]:
-            raise ValueError(
-                f"DiscriminatorNet: observation {tuple(observation.shape)} and action "
-                f"{tuple(action.shape)} must share their leading (batch) dimensions."
-            )
-        dtype = self.dtype
-        if observation.dtype != dtype:
-            # Not cast here: a float64 observation means the env stack lacks a cast, and
-            # the policy/critic reading the same data would hit the same mismatch.
-            raise TypeError(
-                f"DiscriminatorNet: observations are {observation.dtype} but the "
-                f"discriminator's parameters are {dtype}. Cast the observations to "
-                f"{dtype} upstream, e.g. add DoubleToFloat() at the start of the env's "
-                "Compose (and to the demonstrations), or convert the discriminator "
-                f"with .to({observation.dtype})."
-            )
         if self.obs_norm is not None:
             observation = self.obs_norm(observation)
         return torch.cat([observation, action.to(observation.dtype)], dim=-1)
@@ -349,41 +304,11 @@ class Discriminator(TensorDictModule):
         out_key: NestedKey = "d_logit",
         **net_kwargs,
     ) -> None:
-        in_keys = list(in_keys)
-        if len(in_keys) != 2:
-            raise ValueError(
-                f"Discriminator: in_keys must be exactly (observation_key, action_key), "
-                f"got {in_keys}."
-            )
         net = DiscriminatorNet(observation_dim, action_dim, **net_kwargs)
-        super().__init__(module=net, in_keys=in_keys, out_keys=[out_key])
+        super().__init__(module=net, in_keys=list(in_keys), out_keys=[out_key])
 
     @property
     def net(self) -> DiscriminatorNet:
         """The wrapped :class:`DiscriminatorNet`."""
         return self.module
 
-
-def _check_discriminator(discriminator, owner: str) -> DiscriminatorNet:
-    """Returns the :class:`DiscriminatorNet` of ``discriminator`` or raises a clear ``TypeError``.
-
-    Shared by the loss and the reward transform, which both need the net's
-    ``features``/``head``/``obs_norm`` and the module's in/out keys.
-    """
-    module = getattr(discriminator, "module", None)
-    if not isinstance(discriminator, TensorDictModule) or not isinstance(
-        module, DiscriminatorNet
-    ):
-        raise TypeError(
-            f"{owner} expects a torchrl_sail.Discriminator (or a TensorDictModule whose "
-            f".module is a DiscriminatorNet), got {type(discriminator).__name__}"
-            + (f" wrapping {type(module).__name__}" if module is not None else "")
-            + ". Build it with Discriminator(observation_dim, action_dim)."
-        )
-    if len(discriminator.in_keys) != 2 or len(discriminator.out_keys) != 1:
-        raise TypeError(
-            f"{owner} expects a discriminator with in_keys (observation_key, action_key) "
-            f"and one out_key (the logit), got in_keys={discriminator.in_keys} and "
-            f"out_keys={discriminator.out_keys}."
-        )
-    return module

@@ -1,7 +1,7 @@
 """Discriminator loss of SAIL: BCE + Bernoulli-entropy bonus + gradient penalty.
 
 SAIL trains its discriminator ``D(s, a)`` to tell teacher transitions (label 1) from
-the agent's own transitions (label 0); ``-log(1 - D)`` is then the critic's reward
+agent transitions (label 0); ``-log(1 - D)`` is then the critic's reward
 (:class:`~torchrl_sail.DiscriminatorReward`). This module reproduces the loss of the
 authors' ``DiscriminatorCalssifier`` (``stable_baselines/gail/adversary.py``):
 
@@ -25,8 +25,6 @@ from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import dispatch, TensorDictModule
 from tensordict.utils import NestedKey
 from torchrl.objectives import LossModule
-
-from torchrl_sail.modules.discriminator import _check_discriminator
 
 __all__ = ["DiscriminatorLoss"]
 
@@ -57,7 +55,7 @@ class DiscriminatorLoss(LossModule):
 
     Summing every ``loss_*`` entry gives ``L``.
 
-    .. note:: **Departure from the authors' code (required by our spec).** The
+    .. note:: **Departure from the authors' code.** The
         authors draw the interpolation weights once, at graph construction, as a
         fixed per-*feature* vector ``α ~ U(0, 1)^(1, obs_dim + act_dim)`` shared by
         every sample and every step, which is a bug: the penalty is then only enforced
@@ -190,10 +188,11 @@ class DiscriminatorLoss(LossModule):
         gp_coef: float = 10.0,
         update_obs_norm: bool = True,
     ) -> None:
-        _check_discriminator(discriminator, type(self).__name__)
         self._in_keys = None
         super().__init__()
         self.discriminator = discriminator
+        # Resolved now, so that a module without in_keys fails here, not at the first call.
+        self._set_in_keys()
         self.register_coeff_buffer("entropy_coef", entropy_coef, dtype=torch.float32)
         self.register_coeff_buffer("gp_coef", gp_coef, dtype=torch.float32)
         self.update_obs_norm = update_obs_norm
@@ -231,42 +230,21 @@ class DiscriminatorLoss(LossModule):
     def in_keys(self, values):
         self._in_keys = values
 
-    def _get(self, tensordict: TensorDictBase, key: NestedKey) -> torch.Tensor:
-        value = tensordict.get(key, None)
-        if value is None:
-            raise KeyError(
-                f"{type(self).__name__}: key {key!r} not found in the input tensordict "
-                f"(keys: {sorted(tensordict.keys(True, True), key=str)}). Provide it, or "
-                f"remap the loss keys with set_keys(...) / the discriminator in_keys."
-            )
-        return value
-
     def _split_rows(
         self, tensordict: TensorDictBase
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         obs_key, act_key = self.discriminator.in_keys
-        tag_key = self.tensor_keys.is_teacher
-        tag = self._get(tensordict, tag_key)
-        obs = self._get(tensordict, obs_key)
-        act = self._get(tensordict, act_key)
-        if tag.dtype != torch.bool:
-            raise TypeError(
-                f"{type(self).__name__}: {tag_key!r} must be a bool tensor, got "
-                f"{tag.dtype}. Convert it with .bool()."
-            )
-        if tag.shape != obs.shape[:-1]:
-            raise ValueError(
-                f"{type(self).__name__}: {tag_key!r} must have the batch shape "
-                f"{tuple(obs.shape[:-1])} (no trailing 1), got {tuple(tag.shape)}."
-            )
+        tag = tensordict[self.tensor_keys.is_teacher]
+        # A batch without one of the classes would give a NaN loss (mean over no rows).
         n_teacher = int(tag.sum())
         n_agent = tag.numel() - n_teacher
         if n_teacher == 0 or n_agent == 0:
             raise ValueError(
                 f"{type(self).__name__} needs teacher and agent rows in the same batch, "
-                f"got {n_teacher} rows with {tag_key!r}=True and {n_agent} with False."
+                f"got {n_teacher} rows with {self.tensor_keys.is_teacher!r}=True and "
+                f"{n_agent} with False."
             )
-        return obs, act, tag
+        return tensordict[obs_key], tensordict[act_key], tag
 
     @dispatch
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
