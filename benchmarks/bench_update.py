@@ -1,19 +1,26 @@
-"""Cost of one SAIL gradient step against its TorchRL peer, measured in the same process.
+"""Where a SAIL gradient step's time goes, and how it grows with the replay and batch size.
 
-    python benchmarks/bench_update.py [--threads 1] [--iters 300]
+    python benchmarks/bench_update.py [--threads 1] [--iters 300] [--scale]
 
-Peer = plain TorchRL TD3: ``TensorDictReplayBuffer.sample(256)`` + ``TD3Loss`` critic and
-actor steps. SAIL = ``MixedReplayBuffer.sample(256, teacher_fraction=0.5)`` (128 teacher +
-128 agent rows) with the ``DiscriminatorReward`` recomputed at sample time + ``SAILLoss``
-critic and actor steps.
-Both use the authors' sizes ([400, 300] ReLU nets, batch 256, Hopper dims 12/3), and
-both take an actor step every update (an upper bound on TD3's policy_delay=2 cost).
-Also timed: one discriminator step (256 + 256 rows, gradient penalty included) and the
-sampling pieces alone. Reports the median ms per call and SAIL / peer ratios.
+Pieces of one training frame at the example's cadence (one TD3 step per frame: the critic
+every step, the actor and the targets every second step), at the authors' sizes ([400, 300]
+ReLU nets, batch 256, Hopper dims 12/3), each timed alone (median ms per call):
+
+- sampling: TorchRL's ``TensorDictReplayBuffer.sample(256)`` [peer], ``MixedReplayBuffer``
+  128 + 128 one batch per call, and per batch of a 1000-batch block (``num_batches``), each
+  with and without the ``DiscriminatorReward`` recomputed at sample time;
+- the TD3 step of ``TD3Update``: the reference (``implementation="loss"``: SAILLoss's
+  ``value_loss``/``actor_loss``, SoftUpdate) and the fused implementation, fp32 and bf16,
+  split into critic step, actor step and target update;
+- one discriminator step (256 + 256 rows, gradient penalty included).
+
+``--scale`` adds the per-step cost (block sample with D reward + fused step) and the
+process's resident memory for replay sizes 1e5 and 1e6 (filled) and batch 256 and 1024.
 """
 from __future__ import annotations
 
 import argparse
+import resource
 import statistics
 import time
 
@@ -23,7 +30,7 @@ from tensordict.nn import TensorDictModule, TensorDictSequential
 from torch import nn
 from torchrl.data import Bounded, LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.modules import MLP, TanhModule, ValueOperator
-from torchrl.objectives import SoftUpdate, TD3Loss
+from torchrl.objectives import SoftUpdate
 
 from torchrl_sail import (
     Discriminator,
@@ -31,124 +38,142 @@ from torchrl_sail import (
     DiscriminatorReward,
     MixedReplayBuffer,
     SAILLoss,
+    TD3Update,
     TeacherReplayBuffer,
 )
 
-OBS, ACT, BATCH = 12, 3, 256
+OBS, ACT = 12, 3
+SPEC = Bounded(-1.0, 1.0, shape=(ACT,))
 
 
 def transitions(n: int, episode_len: int = 500) -> TensorDict:
     done = torch.zeros(n, 1, dtype=torch.bool)
     done[episode_len - 1 :: episode_len] = True
     done[-1] = True
-    return TensorDict(
-        {
-            "observation": torch.randn(n, OBS),
-            "action": torch.rand(n, ACT) * 2 - 1,
-            "next": {
-                "observation": torch.randn(n, OBS),
-                "reward": torch.zeros(n, 1),
-                "done": done,
-                "terminated": done.clone(),
-                "truncated": torch.zeros(n, 1, dtype=torch.bool),
-            },
-        },
-        batch_size=[n],
-    )
+    return TensorDict({
+        "observation": torch.randn(n, OBS), "action": torch.rand(n, ACT) * 2 - 1,
+        "next": {"observation": torch.randn(n, OBS), "reward": torch.zeros(n, 1), "done": done,
+                 "terminated": done.clone(), "truncated": torch.zeros(n, 1, dtype=torch.bool)},
+    }, batch_size=[n])
 
 
-def agent_nets(spec):
+def make_update(implementation: str, precision: str) -> TD3Update:
+    """The example's TD3 step: [400, 300] ReLU nets, fused Adam, tau 0.005."""
+    torch.manual_seed(0)
     actor = TensorDictSequential(
-        TensorDictModule(MLP(in_features=OBS, out_features=ACT, num_cells=[400, 300],
-                             activation_class=nn.ReLU), ["observation"], ["param"]),
-        TanhModule(["param"], ["action"], spec=spec),
-    )
+        TensorDictModule(MLP(in_features=OBS, out_features=ACT, num_cells=[400, 300], activation_class=nn.ReLU),
+                         ["observation"], ["param"]),
+        TanhModule(["param"], ["action"], spec=SPEC))
     critic = ValueOperator(MLP(in_features=OBS + ACT, out_features=1, num_cells=[400, 300],
                                activation_class=nn.ReLU), in_keys=["action", "observation"])
-    return actor, critic
-
-
-def make_step(loss, sample):
-    updater = SoftUpdate(loss, tau=0.005)
-    critic_opt = torch.optim.Adam(loss.qvalue_network_params.flatten_keys().values(), lr=1e-3)
-    actor_opt = torch.optim.Adam(loss.actor_network_params.flatten_keys().values(), lr=1e-3)
-
-    def step():
-        batch = sample()
-        loss_q, _ = loss.value_loss(batch)
-        critic_opt.zero_grad()
-        loss_q.backward()
-        critic_opt.step()
-        loss_a, _ = loss.actor_loss(batch)
-        actor_opt.zero_grad()
-        loss_a.backward()
-        actor_opt.step()
-        updater.step()
-
-    return step
+    loss = SAILLoss(actor, critic, action_spec=SPEC)
+    loss.make_value_estimator(gamma=0.99)
+    loss.set_keys(terminated="done")
+    return TD3Update(
+        loss, target_updater=SoftUpdate(loss, tau=0.005), implementation=implementation, precision=precision,
+        critic_optimizer=torch.optim.Adam(loss.qvalue_network_params.flatten_keys().values(), lr=1e-3, fused=True),
+        actor_optimizer=torch.optim.Adam(loss.actor_network_params.flatten_keys().values(), lr=1e-3, fused=True))
 
 
 def timed(fn, iters: int, warmup: int = 20) -> float:
-    for _ in range(warmup):
-        fn()
+    """Median ms per call of ``fn(i)``."""
+    for i in range(warmup):
+        fn(i)
     samples = []
-    for _ in range(iters):
+    for i in range(iters):
         t0 = time.perf_counter()
-        fn()
+        fn(i)
         samples.append(time.perf_counter() - t0)
     return statistics.median(samples) * 1e3
+
+
+def buffers(replay_size: int):
+    agent = TensorDictReplayBuffer(storage=LazyTensorStorage(replay_size))
+    for start in range(0, replay_size, 100_000):  # filled in chunks: no 2x peak at fill time
+        agent.extend(transitions(min(100_000, replay_size - start)))
+    teacher = TeacherReplayBuffer()  # top-K, K = 10
+    teacher.add_demonstrations(transitions(2_000))
+    return teacher, agent
+
+
+def pieces(iters: int) -> dict:
+    teacher, agent = buffers(100_000)
+    disc = Discriminator(OBS, ACT)
+    plain, rewarded = MixedReplayBuffer(teacher, agent), MixedReplayBuffer(teacher, agent,
+                                                                           transform=DiscriminatorReward(disc))
+    batches = plain.sample(256, teacher_fraction=0.5, num_batches=64).unbind(0)
+    rows = {
+        "sample: TensorDictReplayBuffer.sample(256) [peer]": lambda i: agent.sample(256),
+        "sample: Mixed 128 + 128, one batch per call": lambda i: plain.sample(256, 0.5),
+        "sample: Mixed 128 + 128, per batch of a 1000-batch block": lambda i: plain.sample(256, 0.5, 1000),
+        "sample + D reward, one batch per call": lambda i: rewarded.sample(256, 0.5),
+        "sample + D reward, per batch of a 1000-batch block": lambda i: rewarded.sample(256, 0.5, 1000),
+    }
+    results = {name: timed(fn, iters if "block" not in name else max(iters // 50, 5)) for name, fn in rows.items()}
+    for name in list(results):
+        if "block" in name:
+            results[name] /= 1000
+    for implementation in ("loss", "fused"):
+        for precision in ("fp32", "bf16"):
+            update = make_update(implementation, precision)
+            tag = f"TD3 step [{implementation}, {precision}]"
+            critic = timed(lambda i: update.critic_step(batches[i % 64]), iters)
+            actor = timed(lambda i: update.actor_step(batches[i % 64]), iters)
+            targets = timed(lambda i: update.update_targets(), iters)
+            results[f"{tag} critic step"] = critic
+            results[f"{tag} actor step"] = actor
+            results[f"{tag} target update"] = targets
+            results[f"{tag} per frame (critic + (actor + targets) / 2)"] = critic + (actor + targets) / 2
+    d_loss = DiscriminatorLoss(disc)
+    d_opt = torch.optim.Adam(disc.parameters(), lr=1e-3, fused=True)
+    d_batches = plain.sample(512, 0.5, num_batches=64).unbind(0)
+
+    def d_step(i):
+        out = d_loss(d_batches[i % 64])
+        sum(v for k, v in out.items() if k.startswith("loss_")).backward()
+        d_opt.step()
+        d_opt.zero_grad(set_to_none=True)
+
+    results["discriminator step (256 + 256, GP)"] = timed(d_step, iters // 3)
+    return results
+
+
+def scale(iters: int) -> list[tuple]:
+    rows = []
+    update = make_update("fused", "fp32")
+    for replay_size in (100_000, 1_000_000):
+        teacher, agent = buffers(replay_size)
+        rewarded = MixedReplayBuffer(teacher, agent, transform=DiscriminatorReward(Discriminator(OBS, ACT)))
+        for batch_size in (256, 1024):
+            block_ms = timed(lambda i: rewarded.sample(batch_size, 0.5, 1000), 3, warmup=1) / 1000
+            block = rewarded.sample(batch_size, 0.5, 100).unbind(0)
+            step_ms = timed(lambda i: update(block[i % 100], update_actor=i % 2 == 0), iters // 3)
+            rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+            rows.append((replay_size, batch_size, block_ms, step_ms, rss))
+        del teacher, agent, rewarded
+    return rows
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--iters", type=int, default=300)
+    parser.add_argument("--scale", action="store_true", help="also time replay 1e5/1e6 x batch 256/1024")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
-    torch.manual_seed(0)
-    spec = Bounded(-1.0, 1.0, shape=(ACT,))
-
-    agent = TensorDictReplayBuffer(storage=LazyTensorStorage(100_000))
-    agent.extend(transitions(100_000))
-    teacher = TeacherReplayBuffer()  # top-K, K = 10
-    teacher.add_demonstrations(transitions(2_000))
-    disc = Discriminator(OBS, ACT)
-    mixer = MixedReplayBuffer(teacher, agent, transform=DiscriminatorReward(disc))
-    d_mixer = MixedReplayBuffer(teacher, agent)
-
-    td3 = TD3Loss(*agent_nets(spec), action_spec=spec, loss_function="l2")
-    td3.make_value_estimator(gamma=0.99)
-    sail = SAILLoss(*agent_nets(spec), action_spec=spec, alpha=0.5)
-    sail.make_value_estimator(gamma=0.99)
-    d_loss = DiscriminatorLoss(disc)
-    d_opt = torch.optim.Adam(disc.parameters(), lr=1e-3)
-
-    def d_step():
-        out = d_loss(d_mixer.sample(2 * BATCH, teacher_fraction=0.5))
-        total = sum(v for k, v in out.items() if k.startswith("loss_"))
-        d_opt.zero_grad()
-        total.backward()
-        d_opt.step()
-
-    rows = [
-        ("sample: TensorDictReplayBuffer.sample(256)  [peer]", lambda: agent.sample(BATCH)),
-        ("sample: MixedReplayBuffer, 128 + 128", lambda: d_mixer.sample(BATCH, teacher_fraction=0.5)),
-        ("sample: Mixed + DiscriminatorReward", lambda: mixer.sample(BATCH, teacher_fraction=0.5)),
-        ("update: TD3Loss on plain sample            [peer]", make_step(td3, lambda: agent.sample(BATCH))),
-        ("update: SAILLoss on mixed + D-reward sample", make_step(sail, lambda: mixer.sample(BATCH, teacher_fraction=0.5))),
-        ("update: discriminator step (256 + 256, GP)", d_step),
-    ]
-    results = {}
-    print(f"torch {torch.__version__}, threads={args.threads}, iters={args.iters}, batch={BATCH}")
-    for name, fn in rows:
-        results[name] = timed(fn, args.iters)
-        print(f"{name:55s} {results[name]:8.3f} ms")
-    names = list(results)
-    print(f"ratio sample (mixed + D reward) / peer sample : {results[names[2]] / results[names[0]]:.2f}x")
-    print(f"ratio SAIL update / TD3 update                : {results[names[4]] / results[names[3]]:.2f}x")
-    # Per 1000 env frames at the authors' cadence: 1000 SAIL updates + 20 D steps.
-    per_k = (1000 * results[names[4]] + 20 * results[names[5]]) / 1e3
-    print(f"learner time per 1000 env frames (1000 SAIL + 20 D steps): {per_k:.1f} s")
+    print(f"torch {torch.__version__}, threads={args.threads}, iters={args.iters}")
+    results = pieces(args.iters)
+    for name, ms in results.items():
+        print(f"{name:70s} {ms:8.3f} ms")
+    ref = results["TD3 step [loss, fp32] per frame (critic + (actor + targets) / 2)"]
+    for precision in ("fp32", "bf16"):
+        fused = results[f"TD3 step [fused, {precision}] per frame (critic + (actor + targets) / 2)"]
+        print(f"TD3 step per frame, reference fp32 / fused {precision}: {ref / fused:.2f}x")
+    if args.scale:
+        print("| replay (filled) | batch | block sample + D reward, ms per step | fused step, ms | peak RSS MB |")
+        print("|---|---|---|---|---|")
+        for replay_size, batch_size, block_ms, step_ms, rss in scale(args.iters):
+            print(f"| {replay_size:.0e} | {batch_size} | {block_ms:.3f} | {step_ms:.2f} | {rss:.0f} |")
 
 
 if __name__ == "__main__":

@@ -49,7 +49,7 @@ def main(cfg):  # noqa: F821
     updater = SoftUpdate(loss, tau=cfg.tau)
     critic_optim = torch.optim.Adam(loss.qvalue_network_params.flatten_keys().values(), lr=cfg.lr)
     actor_optim = torch.optim.Adam(loss.actor_network_params.flatten_keys().values(), lr=cfg.lr)
-    replay = make_replay(cfg.frames)
+    replay = make_replay(cfg.frames, cfg.device)
     collector = Collector(env, exploration_policy, frames_per_batch=cfg.frames_per_batch,
                           total_frames=cfg.frames, init_random_frames=cfg.init_random_frames)
 

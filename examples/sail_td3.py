@@ -24,6 +24,7 @@ import torch
 import tqdm
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import OmegaConf
+from torchrl._utils import timeit
 from torchrl.checkpoint import Checkpoint, GlobalRNGState
 
 from torchrl_sail import DiscriminatorReward, MixedReplayBuffer, TRANSITION_KEYS
@@ -43,8 +44,10 @@ from utils import (
     make_optimizers,
     make_replay,
     make_teacher,
+    make_update,
     resume,
     seed_everything,
+    train_timing,
     write_summary,
 )
 
@@ -64,17 +67,18 @@ def main(cfg):  # noqa: F821
     # --- env, teacher, buffers (everything is validated before training starts)
     env, eval_env = make_env(cfg, cfg.seed), make_env(cfg, cfg.seed + 10_000)
     teacher, teacher_return, teacher_source = make_teacher(cfg, env)
-    replay = make_replay(cfg.env.replay_size)
+    replay = make_replay(cfg.env.replay_size, cfg.device)
     # SAIL-OnPolicy trains D against the most recent transitions only.
-    recent = make_replay(cfg.algo.recent_window) if cfg.algo.discriminator_agent_data == "recent" else replay
+    recent = make_replay(cfg.algo.recent_window, cfg.device) if cfg.algo.discriminator_agent_data == "recent" else replay
 
     # --- networks, losses, optimizers, batches
     actor, critic, exploration_policy = make_agent(cfg, env)
     discriminator = make_discriminator(cfg, env)
     loss, target_updater, alpha_scheduler, d_loss = make_losses(cfg, actor, critic, discriminator, env.action_spec)
     optimizers = make_optimizers(cfg, loss, discriminator)
-    # TD3 batches get the imitation reward of the *current* D at sample time.
-    sail_batches = MixedReplayBuffer(teacher, replay, transform=DiscriminatorReward(discriminator))
+    # TD3 batches get the imitation reward of the *current* D at sample time (td3_delayed: the env's).
+    reward = DiscriminatorReward(discriminator) if cfg.algo.imitation_reward else None
+    sail_batches = MixedReplayBuffer(teacher, replay, transform=reward)
     d_batches = MixedReplayBuffer(teacher, recent)
 
     # --- everything a stopped run needs to continue, saved and restored as one
@@ -95,21 +99,9 @@ def main(cfg):  # noqa: F821
         OmegaConf.save(cfg, run_dir / "config.yaml", resolve=True)
     loggers = make_loggers(cfg, run_dir, run["loggers"])
 
-    def update(batch, update_actor: bool) -> dict:
-        loss_q, info = loss.value_loss(batch)
-        loss_q.backward()
-        optimizers["critic"].step()
-        optimizers["critic"].zero_grad(set_to_none=True)
-        metrics = {"sail/loss_qvalue": loss_q.detach(), "sail/q_mean": info["pred_value"].mean(),
-                   "sail/d_reward_mean": batch["next", "reward"].mean()}
-        if update_actor:
-            loss_a, _ = loss.actor_loss(batch)
-            loss_a.backward()
-            optimizers["actor"].step()
-            optimizers["actor"].zero_grad(set_to_none=True)
-            target_updater.step()
-            metrics["sail/loss_actor"] = loss_a.detach()
-        return metrics
+    update = make_update(cfg, loss, optimizers, target_updater)
+    reduced_precision = torch.autocast(torch.device(cfg.device).type, dtype=torch.bfloat16,
+                                       enabled=cfg.optim.precision == "bf16")
 
     def discriminator_update(batch) -> dict:
         out = d_loss(batch)
@@ -122,20 +114,29 @@ def main(cfg):  # noqa: F821
         run.update(frames=frames, gradient_steps=gradient_steps, loggers=logger_states(loggers))
         checkpoint.save(checkpoint_path)
 
-    o, warmup = cfg.optim, cfg.collector.init_random_frames
+    o, d, warmup = cfg.optim, cfg.optim.discriminator, cfg.collector.init_random_frames
     frames, gradient_steps = run["frames"], run["gradient_steps"]
     collector = make_collector(cfg, env, exploration_policy, frames=frames)
     pbar = tqdm.tqdm(total=cfg.collector.total_frames, initial=frames, unit="frames")
     start, start_frames, last_log, metrics = time.time(), frames, frames, {}
-    for data in collector:
+    train_clock = None  # (time, frames, gradient steps) when warm-up ended: the timed part
+    collector_iter = iter(collector)
+    for _ in range(len(collector) if collector.total_frames else 0):  # 0 frames left: a finished run
+        if train_clock is None and frames >= warmup:
+            timeit.erase()
+            train_clock = (time.time(), frames)
+        with timeit("collect"):
+            data = next(collector_iter)
         before, frames = frames, frames + data.numel()
-        flat = data.reshape(-1)
-        replay.extend(flat.select(*TRANSITION_KEYS))
-        if recent is not replay:
-            recent.extend(flat.select(*TRANSITION_KEYS))
+        with timeit("replay_extend"):
+            flat = data.reshape(-1)
+            replay.extend(flat.select(*TRANSITION_KEYS))
+            if recent is not replay:
+                recent.extend(flat.select(*TRANSITION_KEYS))
         # Algorithm 1: every finished trajectory with r_e > C joins the teacher buffer.
-        if cfg.algo.adaptive:
-            teacher.extend(data)
+        with timeit("teacher_extend"):
+            if cfg.algo.adaptive:
+                teacher.extend(data)
         alpha_before = alpha_scheduler.alpha
         alpha = alpha_scheduler.step(frames=frames, num_promoted=teacher.writer.num_promoted)
         if alpha != alpha_before:
@@ -146,41 +147,55 @@ def main(cfg):  # noqa: F821
             metrics["train/delayed_reward"] = flat["next", "reward"][done].mean()
             metrics["train/episode_length"] = flat["step_count"][done].float().mean() + 1
 
-        # The authors' order at a shared frame: the TD3 block, then the D block.
-        for _ in range(crossings(o.train_every_frames, warmup, before, frames) * o.updates_per_train):
-            gradient_steps += 1
-            metrics.update(update(sail_batches.sample(o.batch_size, teacher_fraction=alpha),
-                                  update_actor=gradient_steps % o.policy_delay == 0))
-        d = o.discriminator
-        for _ in range(crossings(d.every_frames, warmup, before, frames) * d.steps):
-            metrics.update(discriminator_update(d_batches.sample(2 * d.batch_size, teacher_fraction=0.5)))
+        # The authors' order at a shared frame: the TD3 block, then the D block. Neither the
+        # buffers nor D change inside a block, so its batches are drawn (and rewarded by the
+        # current D) in one call.
+        num_updates = crossings(o.train_every_frames, warmup, before, frames) * o.updates_per_train
+        if num_updates:
+            with timeit("sample"), reduced_precision:  # the D reward too, with precision=bf16
+                block = sail_batches.sample(o.batch_size, teacher_fraction=alpha, num_batches=num_updates)
+            metrics["sail/d_reward_mean"] = block["next", "reward"].mean()
+            for batch in block.unbind(0):
+                gradient_steps += 1
+                with timeit("update"):
+                    out = update(batch, update_actor=gradient_steps % o.policy_delay == 0)
+                metrics.update({f"sail/{key}": value for key, value in out.items()})
+        num_d_steps = crossings(d.every_frames, warmup, before, frames) * d.steps if reward is not None else 0
+        if num_d_steps:
+            for batch in d_batches.sample(2 * d.batch_size, teacher_fraction=0.5, num_batches=num_d_steps).unbind(0):
+                with timeit("discriminator"):
+                    metrics.update(discriminator_update(batch))
         # Worker processes or Ray actors act with a copy of the policy.
         collector.update_policy_weights_()
 
-        if crossings(cfg.eval.every_frames, 0, before, frames):
-            metrics["eval/return"] = evaluate(eval_env, actor, cfg.eval.episodes, cfg.env.max_episode_steps)
-            run["evals"].append((frames, metrics["eval/return"]))
-            if run["passed_teacher_at"] is None and metrics["eval/return"] > teacher_return:
-                run["passed_teacher_at"] = frames
-        fps = (frames - start_frames) / max(time.time() - start, 1e-9)
-        metrics.update({
-            "teacher/threshold": teacher.writer.threshold, "teacher/num_promoted": teacher.writer.num_promoted,
-            "teacher/num_trajectories": teacher.writer.num_trajectories, "teacher/size": len(teacher),
-            "replay/size": len(replay), "alpha": alpha, "time/fps": fps,
-        })
-        if frames - last_log >= cfg.logger.log_every_frames or "eval/return" in metrics:
-            log_metrics(loggers, metrics, frames)
-            metrics.pop("eval/return", None)
-            metrics.pop("alpha_switch_frame", None)
-            last_log = frames
-        pbar.update(data.numel())
-        pbar.set_postfix(ret=f"{float(metrics.get('train/dense_return', float('nan'))):.0f}",
-                         eval=f"{run['evals'][-1][1]:.0f}" if run["evals"] else "-",
-                         C=f"{teacher.writer.threshold:.0f}", alpha=f"{alpha:.2f}", fps=f"{fps:.0f}")
-        if crossings(cfg.checkpoint.every_frames, 0, before, frames):
-            save(frames, gradient_steps)
+        with timeit("eval"):
+            if crossings(cfg.eval.every_frames, 0, before, frames):
+                metrics["eval/return"] = evaluate(eval_env, actor, cfg.eval.episodes, cfg.env.max_episode_steps)
+                run["evals"].append((frames, metrics["eval/return"]))
+                if run["passed_teacher_at"] is None and metrics["eval/return"] > teacher_return:
+                    run["passed_teacher_at"] = frames
+        with timeit("log"):
+            fps = (frames - start_frames) / max(time.time() - start, 1e-9)
+            metrics.update({
+                "teacher/threshold": teacher.writer.threshold, "teacher/num_promoted": teacher.writer.num_promoted,
+                "teacher/num_trajectories": teacher.writer.num_trajectories, "teacher/size": len(teacher),
+                "replay/size": len(replay), "alpha": alpha, "time/fps": fps,
+            })
+            if frames - last_log >= cfg.logger.log_every_frames or "eval/return" in metrics:
+                log_metrics(loggers, {**metrics, **timeit.todict(prefix="time")}, frames)
+                metrics.pop("eval/return", None)
+                metrics.pop("alpha_switch_frame", None)
+                last_log = frames
+            pbar.update(data.numel())
+            pbar.set_postfix(ret=f"{float(metrics.get('train/dense_return', float('nan'))):.0f}",
+                             eval=f"{run['evals'][-1][1]:.0f}" if run["evals"] else "-",
+                             C=f"{teacher.writer.threshold:.0f}", alpha=f"{alpha:.2f}", fps=f"{fps:.0f}")
+        with timeit("checkpoint"):
+            if crossings(cfg.checkpoint.every_frames, 0, before, frames):
+                save(frames, gradient_steps)
     collector.shutdown()
     pbar.close()
+    end = time.time()
     save(frames, gradient_steps)
 
     evals = [value for _, value in run["evals"]]
@@ -190,7 +205,8 @@ def main(cfg):  # noqa: F821
         final_eval_return=evals[-1] if evals else None, best_eval_return=max(evals) if evals else None,
         passed_teacher_at_frame=run["passed_teacher_at"], num_promoted=teacher.writer.num_promoted,
         teacher_threshold=teacher.writer.threshold,
-        frames_per_second=(frames - start_frames) / max(time.time() - start, 1e-9),
+        frames_per_second=(frames - start_frames) / max(end - start, 1e-9),
+        **train_timing(train_clock, end=end, frames=frames),
     )
 
 

@@ -16,6 +16,7 @@ from omegaconf import DictConfig, OmegaConf
 from tensordict import TensorDict
 from tensordict.nn import TensorDictModule, TensorDictSequential
 from torch import nn
+from torchrl._utils import timeit
 from torchrl.collectors import Collector
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.envs import ExplorationType, set_exploration_type
@@ -33,6 +34,7 @@ from torchrl_sail import (
     load_demonstrations,
     make_sail_env,
     SAILLoss,
+    TD3Update,
     TeacherReplayBuffer,
     TopKTrajectoryWriter,
     TRANSITION_KEYS,
@@ -79,6 +81,8 @@ def check_config(cfg: DictConfig) -> None:
         ("algo.discriminator_agent_data", cfg.algo.discriminator_agent_data,
          cfg.algo.discriminator_agent_data in ("replay", "recent"), "use replay | recent"),
         ("teacher.eviction", cfg.teacher.eviction, cfg.teacher.eviction in ("topk", "fifo"), "use topk | fifo"),
+        ("optim.implementation", o.implementation, o.implementation in ("fused", "loss"), "use fused | loss"),
+        ("optim.precision", o.precision, o.precision in ("fp32", "bf16"), "use fp32 | bf16"),
         ("collector.backend", c.backend, c.backend in (None, "direct", "process", "ray"),
          "use null, direct, process or ray"),
         ("collector.backend", c.backend, c.backend != "direct" or c.num_workers == 1,
@@ -166,14 +170,15 @@ def make_teacher(cfg: DictConfig, env):
         writer = FIFOTrajectoryWriter(k=t.k, capacity=t.capacity)
     else:  # the paper's K best trajectories
         writer = TopKTrajectoryWriter(k=t.k, max_trajectory_length=cfg.env.max_episode_steps)
-    buffer = TeacherReplayBuffer(writer)
+    buffer = TeacherReplayBuffer(writer, device=cfg.device)
     # The buffer ranks trajectories by r_e = floor(0.1 R), the only reward the learner sees.
     buffer.add_demonstrations(DelayedRewardTransform().forward(demos).select(*TRANSITION_KEYS))
     return buffer, float(max(meta["episode_returns"])), str(path)
 
 
-def make_replay(size: int) -> TensorDictReplayBuffer:
-    return TensorDictReplayBuffer(storage=LazyTensorStorage(size))
+def make_replay(size: int, device: str) -> TensorDictReplayBuffer:
+    # On the learner's device: with device=cuda, sampling and the update never leave the GPU.
+    return TensorDictReplayBuffer(storage=LazyTensorStorage(size, device=device))
 
 
 class FilledRows:
@@ -206,7 +211,7 @@ def make_agent(cfg: DictConfig, env):
     actor = TensorDictSequential(
         TensorDictModule(
             MLP(in_features=obs_dim, out_features=act_dim, num_cells=list(cfg.network.actor_cells),
-                activation_class=activation),
+                activation_class=activation, device=cfg.device),
             in_keys=["observation"],
             out_keys=["param"],
         ),
@@ -214,7 +219,7 @@ def make_agent(cfg: DictConfig, env):
     )
     critic = ValueOperator(
         MLP(in_features=obs_dim + act_dim, out_features=1, num_cells=list(cfg.network.critic_cells),
-            activation_class=activation),
+            activation_class=activation, device=cfg.device),
         in_keys=["action", "observation"],
     )
     modules = [actor]
@@ -233,7 +238,7 @@ def make_discriminator(cfg: DictConfig, env) -> Discriminator:
         num_cells=tuple(cfg.network.discriminator_cells),
         activation_class=_ACTIVATIONS[cfg.network.discriminator_activation],
         normalize_observations=cfg.network.normalize_observations,
-    )
+    ).to(cfg.device)
 
 
 def make_losses(cfg: DictConfig, actor, critic, discriminator, action_spec):
@@ -253,12 +258,21 @@ def make_losses(cfg: DictConfig, actor, critic, discriminator, action_spec):
 
 
 def make_optimizers(cfg: DictConfig, loss, discriminator) -> dict:
+    # fused Adam: one kernel for all parameters of a network (CPU and CUDA).
+    adam = partial(torch.optim.Adam, fused=True)
     return {
         # convert_to_functional re-samples and stacks the twin Q params: optimise the loss's copy.
-        "critic": torch.optim.Adam(loss.qvalue_network_params.flatten_keys().values(), lr=cfg.optim.lr),
-        "actor": torch.optim.Adam(loss.actor_network_params.flatten_keys().values(), lr=cfg.optim.lr),
-        "discriminator": torch.optim.Adam(discriminator.parameters(), lr=cfg.optim.discriminator.lr),
+        "critic": adam(loss.qvalue_network_params.flatten_keys().values(), lr=cfg.optim.lr),
+        "actor": adam(loss.actor_network_params.flatten_keys().values(), lr=cfg.optim.lr),
+        "discriminator": adam(discriminator.parameters(), lr=cfg.optim.discriminator.lr),
     }
+
+
+def make_update(cfg: DictConfig, loss, optimizers: dict, target_updater) -> TD3Update:
+    """One TD3 gradient step: the fused implementation, or the loss's own (``optim.implementation=loss``)."""
+    return TD3Update(loss, critic_optimizer=optimizers["critic"], actor_optimizer=optimizers["actor"],
+                     target_updater=target_updater, implementation=cfg.optim.implementation,
+                     precision=cfg.optim.precision)
 
 
 # ----------------------------------------------------------------------------- evaluation
@@ -343,6 +357,18 @@ def read_scalar(run_dir: Path, tag: str) -> tuple[list[int], list[float]]:
         return [], []
     rows = [line.split(",") for line in path.read_text().splitlines() if line.strip()]
     return [int(float(r[0])) for r in rows], [float(r[1]) for r in rows]
+
+
+def train_timing(train_clock, *, end: float, frames: int) -> dict:
+    """Throughput of the part after warm-up, with TorchRL ``timeit`` totals and counts per phase."""
+    if train_clock is None:  # the run ended within warm-up
+        return {"train_frames": 0, "train_seconds": 0.0, "train_frames_per_second": None}
+    t0, frames0 = train_clock
+    seconds = end - t0
+    return {"train_frames": frames - frames0, "train_seconds": seconds,
+            "train_frames_per_second": (frames - frames0) / max(seconds, 1e-9),
+            "time_seconds": {name: total for name, (_, total, _) in timeit._REG.items()},
+            "counts": {"frames": frames - frames0, **{name: count for name, (_, _, count) in timeit._REG.items()}}}
 
 
 def write_summary(run_dir: Path, cfg: DictConfig, *, teacher_return: float, alpha_switch_frame, **results) -> None:

@@ -207,6 +207,27 @@ class TestDiscriminatorReward:
         row = F.softplus(disc.net(td["observation"][1, 4], td["action"][1, 4])).detach()
         torch.testing.assert_close(out["next", "reward"][1, 4], row)
 
+    def test_chunked_equals_whole(self):
+        # a block larger than chunk_size is evaluated in chunks: the same rewards, any shape
+        disc = Discriminator(3, 1, num_cells=(8,))
+        disc.net.obs_norm.update(torch.randn(50, 3))
+        td = TensorDict(observation=torch.randn(4, 5, 3), action=torch.rand(4, 5, 1), batch_size=[4, 5])
+        chunked = DiscriminatorReward(disc, chunk_size=3)(td.clone())["next", "reward"]
+        whole = DiscriminatorReward(disc)(td.clone())["next", "reward"]
+        assert chunked.shape == (4, 5, 1)
+        torch.testing.assert_close(chunked, whole)
+        torch.testing.assert_close(whole, _softplus_logit(disc, td))
+        with pytest.raises(ValueError, match="chunk_size must be >= 1"):
+            DiscriminatorReward(disc, chunk_size=0)
+
+    def test_reward_keeps_discriminator_dtype_under_autocast(self):
+        disc = Discriminator(3, 1, num_cells=(8,))
+        td = _transitions(6)
+        with torch.autocast("cpu", dtype=torch.bfloat16):
+            reward = DiscriminatorReward(disc)(td.clone())["next", "reward"]
+        assert reward.dtype == torch.float32
+        torch.testing.assert_close(reward, _softplus_logit(disc, td), rtol=0.02, atol=0.02)
+
     def test_mode_of_discriminator_untouched(self):
         disc = Discriminator(3, 1, num_cells=(8,))
         disc.eval()

@@ -103,6 +103,25 @@ class TestMixedReplayBuffer:
         teacher, agent = _TEACHER.sample(2), _AGENT.sample(6)
         torch.testing.assert_close(batch["observation"], torch.cat([teacher["observation"], agent["observation"]]))
 
+    @pytest.mark.parametrize("fraction", [0.0, 0.4, 1.0])
+    def test_num_batches_exact_split_in_every_batch(self, fraction):
+        seen = []
+        rb = MixedReplayBuffer(_TEACHER, _AGENT, transform=lambda td: seen.append(td.batch_size) or td)
+        block = rb.sample(5, teacher_fraction=fraction, num_batches=7)
+        num_teacher = round(fraction * 5)
+        assert block.batch_size == (7, 5) and seen == [torch.Size([7, 5])]  # one transform call
+        assert block["is_teacher"].tolist() == [[True] * num_teacher + [False] * (5 - num_teacher)] * 7
+        assert torch.equal(from_teacher(block.reshape(-1)), block["is_teacher"].reshape(-1))
+
+    def test_num_batches_draws_like_one_sample_per_buffer(self):
+        # batch i holds draws [i * n, (i + 1) * n) of one teacher and one agent sample
+        torch.manual_seed(3)
+        block = MixedReplayBuffer(_TEACHER, _AGENT).sample(4, teacher_fraction=0.5, num_batches=3)
+        torch.manual_seed(3)
+        teacher, agent = _TEACHER.sample(6), _AGENT.sample(6)
+        expected = torch.cat([teacher["observation"].reshape(3, 2, OBS), agent["observation"].reshape(3, 2, OBS)], 1)
+        torch.testing.assert_close(block["observation"], expected)
+
 
 if __name__ == "__main__":
     args, unknown = argparse.ArgumentParser().parse_known_args()

@@ -23,7 +23,7 @@ from torchrl_sail.envs import (
     TimeFeature,
 )
 from torchrl_sail.modules import Discriminator, DiscriminatorNet, RunningObsNorm
-from torchrl_sail.objectives import AlphaScheduler, DiscriminatorLoss, SAILLoss
+from torchrl_sail.objectives import AlphaScheduler, DiscriminatorLoss, SAILLoss, TD3Update
 
 __version__ = "0.1.0.dev0"
 
@@ -39,6 +39,7 @@ __all__ = [
     "MixedReplayBuffer",
     "RunningObsNorm",
     "SAILLoss",
+    "TD3Update",
     "TRANSITION_KEYS",
     "TeacherReplayBuffer",
     "TimeFeature",

@@ -62,6 +62,9 @@ class MixedReplayBuffer:
         ([True, True, False, False, False], [1.0, 1.0, 0.0, 0.0, 0.0])
         >>> rb.sample(4, teacher_fraction=0.0)["is_teacher"].any()
         tensor(False)
+        >>> block = rb.sample(5, teacher_fraction=0.4, num_batches=3)  # 3 batches at once
+        >>> block.batch_size, block["is_teacher"].sum(-1).tolist()
+        (torch.Size([3, 5]), [2, 2, 2])
     """
 
     def __init__(
@@ -79,7 +82,7 @@ class MixedReplayBuffer:
         self.tag_key = tag_key
         self.transform = transform
 
-    def sample(self, batch_size: int, teacher_fraction: float) -> TensorDictBase:
+    def sample(self, batch_size: int, teacher_fraction: float, num_batches: int | None = None) -> TensorDictBase:
         """Draws a tagged ``[batch_size]`` batch, teacher rows first.
 
         Args:
@@ -87,16 +90,24 @@ class MixedReplayBuffer:
             teacher_fraction (float): the teacher share, in ``[0, 1]``; the batch holds
                 ``round(teacher_fraction * batch_size)`` teacher rows, as in
                 :class:`~torchrl.data.OfflineToOnlineReplayBuffer`.
+            num_batches (int, optional): draw ``num_batches`` independent batches at once,
+                as one ``[num_batches, batch_size]`` tensordict (each batch with the exact
+                split, teacher rows first), e.g. the batches of a block of gradient steps
+                during which neither buffer nor the transform's discriminator changes.
+                One sampling call and one transform call instead of ``num_batches``.
+                Defaults to ``None`` (one ``[batch_size]`` batch).
         """
         num_teacher = round(teacher_fraction * batch_size)
+        shape = (batch_size,) if num_batches is None else (num_batches, batch_size)
+        count = 1 if num_batches is None else num_batches
         parts = [
-            buffer.sample(n).select(*self.keys)
+            buffer.sample(n * count).select(*self.keys).reshape(*shape[:-1], n)
             for buffer, n in ((self.teacher, num_teacher), (self.agent, batch_size - num_teacher))
             if n
         ]
-        out = torch.cat(parts) if len(parts) == 2 else parts[0]
-        tag = torch.zeros(batch_size, dtype=torch.bool, device=out.device)
-        tag[:num_teacher] = True
+        out = torch.cat(parts, -1) if len(parts) == 2 else parts[0]
+        tag = torch.zeros(shape, dtype=torch.bool, device=out.device)
+        tag[..., :num_teacher] = True
         out.set(self.tag_key, tag)
         return out if self.transform is None else self.transform(out)
 

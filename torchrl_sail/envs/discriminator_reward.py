@@ -85,6 +85,9 @@ class DiscriminatorReward(Transform):
             logit at the root of the output tensordict (under the discriminator's
             out_key, e.g. ``"d_logit"``). Defaults to ``False``. The env path never
             writes the logit (it is not part of the env specs).
+        chunk_size (int, optional): inputs with more rows (e.g. a ``[num_batches, B]``
+            block from :meth:`MixedReplayBuffer.sample`) are evaluated this many rows at a
+            time. Defaults to ``1024``.
 
     Examples:
         >>> import torch
@@ -119,10 +122,14 @@ class DiscriminatorReward(Transform):
         *,
         out_key: NestedKey = "reward",
         keep_logit: bool = False,
+        chunk_size: int = 1024,
     ) -> None:
+        if chunk_size < 1:
+            raise ValueError(f"chunk_size must be >= 1, got {chunk_size}.")
         super().__init__(in_keys=list(discriminator.in_keys), out_keys=[out_key])
         self.discriminator = discriminator
         self.keep_logit = keep_logit
+        self.chunk_size = chunk_size
 
     @property
     def out_key(self) -> NestedKey:
@@ -143,10 +150,22 @@ class DiscriminatorReward(Transform):
         return self
 
     def _logit(self, tensordict: TensorDictBase) -> torch.Tensor:
-        # a selected (shallow) copy: the discriminator writes its logit there, not
-        # into the caller's tensordict
-        inputs = tensordict.select(*self.discriminator.in_keys)
-        return self.discriminator(inputs).get(self.discriminator.out_keys[0])
+        obs_key, act_key = self.discriminator.in_keys
+        obs, act = tensordict[obs_key], tensordict[act_key]
+        net = self.discriminator.module
+        rows = obs.shape[:-1].numel()
+        if rows <= self.chunk_size:
+            # under autocast the logit comes out in reduced precision: the reward keeps D's dtype
+            return net(obs, act).to(net.dtype)
+        # Large inputs (a block of batches) in chunks: bounded memory, and on CPU the per-row
+        # cost is lowest at about a thousand rows. Each chunk is written into one output (a
+        # list of small results kept alive between large freed activations fragments the heap).
+        obs, act = obs.reshape(rows, -1), act.reshape(rows, -1)
+        logit = torch.empty(rows, 1, dtype=net.dtype, device=obs.device)
+        for start in range(0, rows, self.chunk_size):
+            end = start + self.chunk_size
+            logit[start:end] = net(obs[start:end], act[start:end])
+        return logit.reshape(*tensordict[obs_key].shape[:-1], 1)
 
     @torch.no_grad()
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:

@@ -1,0 +1,281 @@
+"""End-to-end training throughput: the SAIL example vs the same loop without D vs SB3 TD3.
+
+    python benchmarks/throughput.py [--env Hopper-v4] [--warmup 2000] [--frames 5000] [--rounds 2] \
+        [--threads 1 2] [--trainers sail td3 sb3] [--sail-overrides "a=b c=d"] \
+        [--example-root ../old --label before]
+
+Trainers, each in its own process, timed from the end of the warm-up (uniform random actions,
+no updates) for ``--frames`` frames:
+
+- ``sail``: ``examples/sail_td3.py`` with the config defaults (reads ``<run dir>/summary.json``).
+- ``td3``: the same command with ``algo=td3_delayed`` (the same loop without the discriminator).
+- ``sb3``: Stable-Baselines3 TD3 with the example's defaults (1000 steps every 1000 frames,
+  policy_delay 2, batch 256, [400, 300] nets, Gaussian exploration noise from ``conf/env``).
+  Needs ``pip install -e ".[bench]"``.
+
+``--example-root`` runs ``sail`` and ``td3`` from another checkout (cwd, script and
+``PYTHONPATH`` there, so its own package is imported), e.g. a worktree of an earlier commit;
+``--label`` tags every record (``before``/``after``) so runs can be told apart in one table.
+
+Runs alternate round by round (round, threads, trainer), so peers share the same period.
+Reports the median over rounds of frames/s, ms per gradient step, ms per collected frame and
+peak RSS, and frames/s ratios against SB3 of the same label; each record also holds
+``phases_ms_per_frame`` (ms per timed frame of each timed phase); writes the raw records and
+the table to ``--out``.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib.metadata
+import json
+import os
+import resource
+import shlex
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+TRAINERS = ("sail", "td3", "sb3")
+METRICS = ("fps", "ms_update", "ms_frame", "peak_mb", "gradient_steps")
+SB3_MISSING = 'stable-baselines3 is not installed: pip install -e ".[bench]"'
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--env", default="Hopper-v4")
+    parser.add_argument("--warmup", type=int, default=2000, help="random frames before timing")
+    parser.add_argument("--frames", type=int, default=5000, help="timed frames after the warm-up")
+    parser.add_argument("--rounds", type=int, default=2)
+    parser.add_argument("--threads", type=int, nargs="+", default=[1, 2])
+    parser.add_argument("--trainers", nargs="+", choices=TRAINERS, default=list(TRAINERS))
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--sail-overrides", default="", help="extra Hydra overrides for sail and td3")
+    parser.add_argument("--example-root", type=Path, default=REPO, help="checkout to run sail and td3 from")
+    parser.add_argument("--label", default="", help="stored in every record, e.g. before | after")
+    parser.add_argument("--out", type=Path, default=REPO / "benchmarks" / "results" / "throughput.json")
+    parser.add_argument("--worker", choices=["sb3"], help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.frames <= 0 or args.frames % 1000:
+        parser.error(f"--frames must be a positive multiple of 1000 (the train cadence), got {args.frames}")
+    if args.warmup <= 0 or args.warmup % 1000:
+        parser.error(f"--warmup must be a positive multiple of 1000 (the train cadence), got {args.warmup}")
+    if args.rounds < 1 or min(args.threads) < 1:
+        parser.error("--rounds and --threads must be >= 1")
+    args.example_root = args.example_root.resolve()
+    if not (args.example_root / "examples" / "sail_td3.py").is_file():
+        parser.error(f"--example-root {args.example_root} has no examples/sail_td3.py")
+    return args
+
+
+# ----------------------------------------------------------------------------- commands
+def example_command(args, trainer: str, threads: int, run_dir: Path) -> list[str]:
+    cmd = [sys.executable, str(args.example_root / "examples" / "sail_td3.py"), f"env={args.env}",
+           f"seed={args.seed}", f"threads={threads}", f"collector.init_random_frames={args.warmup}",
+           f"collector.total_frames={args.warmup + args.frames}", "logger.backends=[csv]",
+           "checkpoint.every_frames=0", "eval.every_frames=0", f"hydra.run.dir={run_dir}"]
+    if trainer == "td3":
+        cmd.append("algo=td3_delayed")
+    return cmd + shlex.split(args.sail_overrides)
+
+
+def sb3_command(args, threads: int) -> list[str]:
+    return [sys.executable, "benchmarks/throughput.py", "--worker", "sb3", "--threads", str(threads),
+            "--env", args.env, "--warmup", str(args.warmup), "--frames", str(args.frames),
+            "--seed", str(args.seed)]
+
+
+def per_unit_ms(seconds: dict, phase: str, count) -> float | None:
+    return seconds[phase] / count * 1e3 if phase in seconds and count else None
+
+
+def record_from_summary(summary: dict) -> dict:
+    """The benchmark's metrics from the example's ``summary.json`` (None where a key is missing)."""
+    seconds, counts = summary.get("time_seconds") or {}, summary.get("counts") or {}
+    fps = summary.get("train_frames_per_second")
+    if fps is None and summary.get("train_seconds"):
+        fps = summary.get("train_frames", 0) / summary["train_seconds"]
+    steps = counts.get("gradient_steps", counts.get("update"))  # or the timed phase's call count
+    return {"fps": fps, "ms_update": per_unit_ms(seconds, "update", steps),
+            "ms_frame": per_unit_ms(seconds, "collect", counts.get("frames")),
+            "peak_mb": summary.get("peak_memory_mb"), "gradient_steps": steps}
+
+
+def phases_ms_per_frame(summary: dict) -> dict:
+    """ms per timed frame spent in each ``timeit`` phase of the example's ``summary.json``."""
+    frames = (summary.get("counts") or {}).get("frames")
+    return {phase: s / frames * 1e3 for phase, s in (summary.get("time_seconds") or {}).items()} if frames else {}
+
+
+def run_one(args, trainer: str, threads: int) -> dict:
+    run_dir = Path(tempfile.mkdtemp(prefix=f"throughput-{trainer}-"))
+    cmd = sb3_command(args, threads) if trainer == "sb3" else example_command(args, trainer, threads, run_dir)
+    print("$", shlex.join(cmd), flush=True)
+    env = {**os.environ, "WANDB_SILENT": "true", "HYDRA_FULL_ERROR": "1"}
+    if trainer != "sb3":  # import the package of the checkout the example runs from
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(args.example_root), os.environ.get("PYTHONPATH")]))
+    try:
+        if trainer == "td3" and not (args.example_root / "conf" / "algo" / "td3_delayed.yaml").is_file():
+            raise RuntimeError(f"{args.example_root} has no conf/algo/td3_delayed.yaml: td3 needs a checkout "
+                               "with algo=td3_delayed (skipped)")
+        proc = subprocess.run(cmd, cwd=REPO if trainer == "sb3" else args.example_root, env=env,
+                              capture_output=True, text=True)
+        if proc.returncode:
+            raise RuntimeError(f"exit {proc.returncode}: {proc.stderr.strip()[-2000:]}")
+        if trainer == "sb3":
+            record = json.loads(proc.stdout.strip().splitlines()[-1])
+        else:
+            summary = json.loads((run_dir / "summary.json").read_text())
+            record = {**record_from_summary(summary), "phases_ms_per_frame": phases_ms_per_frame(summary)}
+    except (RuntimeError, OSError, ValueError, IndexError) as err:
+        print(f"  {trainer} failed: {err}", file=sys.stderr)
+        record = {"error": str(err)}
+    finally:
+        shutil.rmtree(run_dir, ignore_errors=True)
+    return {"label": args.label, "trainer": trainer, "threads": threads, "command": shlex.join(cmd), **record}
+
+
+# ----------------------------------------------------------------------------- SB3 worker
+def require_sb3() -> None:
+    try:
+        import stable_baselines3  # noqa: F401
+    except ImportError:
+        raise SystemExit(SB3_MISSING) from None
+
+
+def sb3_worker(args) -> dict:
+    import torch
+
+    torch.set_num_threads(args.threads[0])
+    require_sb3()
+    import gymnasium as gym
+    import numpy as np
+    from omegaconf import OmegaConf
+    from stable_baselines3 import TD3
+    from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.noise import NormalActionNoise
+
+    env_cfg = OmegaConf.load(REPO / "conf" / "env" / f"{args.env}.yaml")
+    env = gym.make(args.env, max_episode_steps=env_cfg.max_episode_steps)
+    act_dim = env.action_space.shape[-1]
+    noise = NormalActionNoise(np.zeros(act_dim), env_cfg.exploration_noise * np.ones(act_dim))
+    model = TD3("MlpPolicy", env, learning_rate=1e-3, buffer_size=1_000_000, learning_starts=args.warmup,
+                batch_size=256, tau=0.005, gamma=0.99, train_freq=(1000, "step"), gradient_steps=1000,
+                action_noise=noise, policy_delay=2, target_policy_noise=0.2, target_noise_clip=0.5,
+                policy_kwargs=dict(net_arch=[400, 300]), seed=args.seed, device="cpu")
+    clock = {"start": None, "train": 0.0, "collect": 0.0, "steps": 0}
+
+    class StartClock(BaseCallback):
+        def _on_step(self) -> bool:
+            if self.num_timesteps == args.warmup:
+                clock["start"] = time.perf_counter()
+            return True
+
+    def timed(name: str, fn):
+        def wrapper(*a, **kw):
+            t0, timing = time.perf_counter(), model.num_timesteps >= args.warmup
+            out = fn(*a, **kw)
+            if timing:
+                clock[name] += time.perf_counter() - t0
+            return out
+        return wrapper
+
+    train = timed("train", model.train)
+
+    def counted_train(gradient_steps: int, batch_size: int = 100) -> None:
+        clock["steps"] += gradient_steps
+        train(gradient_steps, batch_size)
+
+    model.train, model.collect_rollouts = counted_train, timed("collect", model.collect_rollouts)
+    model.learn(total_timesteps=args.warmup + args.frames, callback=StartClock())
+    seconds = time.perf_counter() - clock["start"]
+    steps = clock["steps"]
+    return {"fps": args.frames / seconds, "ms_update": clock["train"] / steps * 1e3 if steps else None,
+            "ms_frame": clock["collect"] / args.frames * 1e3, "gradient_steps": steps,
+            "phases_ms_per_frame": {name: clock[name] / args.frames * 1e3 for name in ("collect", "train")},
+            "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+
+
+# ----------------------------------------------------------------------------- report
+def median(values: list) -> float | None:
+    values = [v for v in values if v is not None]
+    return statistics.median(values) if values else None
+
+
+def aggregate(records: list[dict]) -> list[dict]:
+    """Median over rounds per (label, trainer, threads), and frames/s over SB3's (same label and threads)."""
+    def key(r: dict) -> tuple:
+        return r.get("label", ""), r["trainer"], r["threads"]
+
+    rows = []
+    for label, trainer, threads in dict.fromkeys(map(key, records)):
+        runs = [r for r in records if key(r) == (label, trainer, threads)]
+        phases = [r.get("phases_ms_per_frame") or {} for r in runs]
+        rows.append({"label": label, "trainer": trainer, "threads": threads, "runs": len(runs),
+                     "failed": sum("error" in r for r in runs),
+                     **{m: median([r.get(m) for r in runs]) for m in METRICS},
+                     "phases_ms_per_frame": {p: median([ph.get(p) for ph in phases])
+                                             for p in dict.fromkeys(p for ph in phases for p in ph)}})
+    sb3 = {(row["label"], row["threads"]): row["fps"] for row in rows if row["trainer"] == "sb3"}
+    for row in rows:
+        base = sb3.get((row["label"], row["threads"]))
+        row["fps_vs_sb3"] = row["fps"] / base if row["fps"] is not None and base else None
+    return rows
+
+
+def markdown(rows: list[dict]) -> str:
+    def fmt(value, spec: str) -> str:
+        return "-" if value is None else format(value, spec)
+
+    lines = ["| label | trainer | threads | frames/s | ms/update | ms/frame | grad steps | peak MB "
+             "| frames/s vs sb3 |", "|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        cells = [r["label"], r["trainer"], r["threads"], fmt(r["fps"], ".1f"), fmt(r["ms_update"], ".2f"),
+                 fmt(r["ms_frame"], ".3f"), fmt(r["gradient_steps"], ".0f"), fmt(r["peak_mb"], ".0f"),
+                 fmt(r["fps_vs_sb3"], ".2f")]
+        lines.append("| " + " | ".join(map(str, cells)) + " |")
+    return "\n".join(lines)
+
+
+def machine() -> dict:
+    def version(name: str) -> str:
+        try:
+            return importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            return "not installed"
+
+    return {"cpu_count": os.cpu_count(), "load_1min": os.getloadavg()[0], "python": sys.version.split()[0],
+            **{name: version(name) for name in ("torch", "torchrl", "stable-baselines3")}}
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = parse_args(argv)
+    if args.worker:
+        print(json.dumps(sb3_worker(args)))
+        return
+    if "sb3" in args.trainers:
+        require_sb3()
+    info = machine()
+    print(", ".join(f"{k} {v}" for k, v in info.items()))
+    if info["load_1min"] > 0.5:
+        print(f"WARNING: 1-min load average {info['load_1min']:.2f} > 0.5: something else is running",
+              file=sys.stderr)
+    records = []
+    for rnd in range(args.rounds):
+        for threads in args.threads:
+            for trainer in args.trainers:
+                records.append({"round": rnd, **run_one(args, trainer, threads)})
+    rows = aggregate(records)
+    print(markdown(rows))
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    config = {k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items() if k != "worker"}
+    args.out.write_text(json.dumps({"machine": info, "args": config, "records": records, "table": rows}, indent=2))
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()

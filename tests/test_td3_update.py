@@ -1,0 +1,290 @@
+"""Tests for TD3Update (objectives/td3_update.py): the fused step equals the loss's own step.
+
+Both implementations run on copies of the same loss, with the same seed, batches and
+optimizers; losses, gradients and parameters must agree to float rounding."""
+from __future__ import annotations
+
+import argparse
+import copy
+
+import pytest
+import torch
+from tensordict import TensorDict
+from tensordict.nn import TensorDictModule, TensorDictSequential
+from torch import nn
+from torch.overrides import TorchFunctionMode
+from torchrl.data import Bounded
+from torchrl.modules import MLP, TanhModule, ValueOperator
+from torchrl.objectives import SoftUpdate, TD3Loss
+
+from torchrl_sail import SAILLoss, TD3Update
+
+OBS, ACT, B = 5, 2, 32
+DEVICES = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
+
+
+def make_loss(spec, *, cls=SAILLoss, device="cpu", activation=nn.ReLU, num_cells=(16, 12), **kwargs):
+    actor = TensorDictSequential(
+        TensorDictModule(MLP(in_features=OBS, out_features=ACT, num_cells=list(num_cells),
+                             activation_class=activation), ["observation"], ["param"]),
+        TanhModule(["param"], ["action"], spec=spec),
+    )
+    critic = ValueOperator(MLP(in_features=OBS + ACT, out_features=1, num_cells=list(num_cells),
+                               activation_class=activation), in_keys=["action", "observation"])
+    kwargs.setdefault("loss_function", "l2")
+    loss = cls(actor, critic, action_spec=spec, **kwargs).to(device)
+    loss.make_value_estimator(gamma=0.9)
+    return loss
+
+
+def make_update(loss, implementation, *, fused_adam=False, **kwargs):
+    # Targets start as copies of the online nets; perturb them so that mixing up online and
+    # target parameters cannot go unnoticed. SoftUpdate copies online -> target when built.
+    updater = SoftUpdate(loss, tau=0.05)
+    g = torch.Generator().manual_seed(7)
+    with torch.no_grad():
+        for name, buf in loss.named_buffers():
+            if name.startswith("target_") and name.endswith(("weight", "bias")):
+                buf.add_(0.3 * torch.randn(buf.shape, generator=g).to(buf.device))
+    return TD3Update(
+        loss,
+        critic_optimizer=torch.optim.Adam(loss.qvalue_network_params.flatten_keys().values(), lr=1e-2,
+                                          fused=fused_adam),
+        actor_optimizer=torch.optim.Adam(loss.actor_network_params.flatten_keys().values(), lr=1e-2,
+                                         fused=fused_adam),
+        target_updater=updater, implementation=implementation, **kwargs)
+
+
+def make_batch(spec, *, seed, device="cpu", n_teacher=B // 4):
+    g = torch.Generator().manual_seed(seed)
+    terminated = torch.rand(B, 1, generator=g) < 0.2
+    truncated = torch.rand(B, 1, generator=g) < 0.1
+    return TensorDict({
+        "observation": torch.randn(B, OBS, generator=g),
+        "action": spec.low + (spec.high - spec.low) * torch.rand(B, ACT, generator=g),
+        "is_teacher": torch.arange(B) < n_teacher,
+        ("next", "observation"): torch.randn(B, OBS, generator=g),
+        ("next", "reward"): torch.randn(B, 1, generator=g),
+        ("next", "terminated"): terminated,
+        ("next", "truncated"): truncated,
+        ("next", "done"): terminated | truncated,
+    }, [B]).to(device)
+
+
+def recording(update):
+    """Records the gradients each optimizer steps with."""
+    grads = []
+    for opt in (update.critic_optimizer, update.actor_optimizer):
+        params = [p for group in opt.param_groups for p in group["params"]]
+        opt.register_step_pre_hook(lambda *_, params=params: grads.append(
+            [None if p.grad is None else p.grad.clone() for p in params]))
+    return grads
+
+
+def run_both(spec, steps=6, *, device="cpu", loss_kwargs=None, batch_kwargs=None, set_keys=None, **kwargs):
+    """Runs the same seeded steps with both implementations; returns (metrics, grads, state) per impl."""
+    torch.manual_seed(0)
+    base = make_loss(spec, device=device, **(loss_kwargs or {}))
+    if set_keys:
+        base.set_keys(**set_keys)
+    out = {}
+    for implementation in ("loss", "fused"):
+        loss = copy.deepcopy(base)
+        update = make_update(loss, implementation, **kwargs)
+        grads = recording(update)
+        torch.manual_seed(1)  # the policy-smoothing noise
+        metrics = [update(make_batch(spec, seed=i, device=device, **(batch_kwargs or {})), update_actor=i % 2 == 0)
+                   for i in range(steps)]
+        out[implementation] = (metrics, grads, loss.state_dict())
+    return out
+
+
+def assert_same(out, atol=1e-5):
+    (m_ref, g_ref, s_ref), (m_fast, g_fast, s_fast) = out["loss"], out["fused"]
+    for a, b in zip(m_ref, m_fast):
+        assert a.keys() == b.keys()
+        for key in a:
+            torch.testing.assert_close(b[key], a[key], atol=atol, rtol=1e-5, msg=key)
+    assert len(g_ref) == len(g_fast) > 0
+    for step_ref, step_fast in zip(g_ref, g_fast):
+        for a, b in zip(step_ref, step_fast):
+            assert (a is None) == (b is None)  # the TanhModule bounds are in the actor's params, never a grad
+            if a is not None:
+                torch.testing.assert_close(b, a, atol=atol, rtol=1e-4)
+    assert s_ref.keys() == s_fast.keys()
+    for key in s_ref:
+        torch.testing.assert_close(s_fast[key], s_ref[key], atol=atol, rtol=1e-4, msg=key)
+
+
+UNIT = Bounded(-1.0, 1.0, (ACT,))
+
+
+class TestTD3Update:
+    @pytest.mark.parametrize("device", DEVICES)
+    def test_fused_equals_loss_default(self, device):
+        # SAIL's default: mixing="batch", TD3's terminal handling (bootstrap unless terminated)
+        assert_same(run_both(UNIT, device=device))
+
+    def test_fused_equals_loss_authors_terminal(self):
+        # the example's truncation_is_terminal: done stops bootstrapping
+        assert_same(run_both(UNIT, set_keys={"terminated": "done"}))
+
+    @pytest.mark.parametrize("n_teacher", [0, B // 4, B])
+    def test_fused_equals_loss_weights(self, n_teacher):
+        # Algorithm 1's weighted form, including the one-group edge cases
+        assert_same(run_both(UNIT, loss_kwargs={"mixing": "weights", "alpha": 0.3},
+                             batch_kwargs={"n_teacher": n_teacher}))
+
+    def test_fused_equals_loss_smooth_l1(self):
+        assert_same(run_both(UNIT, loss_kwargs={"loss_function": "smooth_l1"}))
+
+    def test_fused_equals_loss_bounds_and_activation(self):
+        # TanhModule's affine map onto non-symmetric bounds, and a non-ReLU activation
+        spec = Bounded(torch.tensor([-2.0, 0.0]), torch.tensor([0.5, 3.0]), (ACT,))
+        assert_same(run_both(spec, loss_kwargs={"activation": nn.Tanh, "num_cells": (16,)}))
+
+    def test_fused_equals_plain_td3loss(self):
+        assert_same(run_both(UNIT, loss_kwargs={"cls": TD3Loss}))
+
+    def test_first_step_by_hand(self):
+        """One critic step against a hand-written TD3 target and MSE on the loss's parameters."""
+        torch.manual_seed(0)
+        loss = make_loss(UNIT, num_cells=(8,))
+        update = make_update(loss, "fused")
+        grads = recording(update)
+        batch = make_batch(UNIT, seed=3)
+        params = {k: v.detach().clone() for k, v in loss.state_dict().items()}
+
+        def mlp(prefix, x, i=None):
+            w = [params[f"{prefix}.{n}.weight"] for n in (0, 2)]
+            b = [params[f"{prefix}.{n}.bias"] for n in (0, 2)]
+            if i is not None:
+                w, b = [t[i] for t in w], [t[i] for t in b]
+            return torch.relu(x @ w[0].T + b[0]) @ w[1].T + b[1]
+
+        torch.manual_seed(5)
+        noise = (torch.randn(B, ACT) * 0.2).clamp(-0.5, 0.5)
+        next_obs, obs, act = batch["next", "observation"], batch["observation"], batch["action"]
+        next_act = (mlp("target_actor_network_params.module.0.module", next_obs).tanh() + noise).clamp(-1, 1)
+        next_q = torch.min(*[mlp("target_qvalue_network_params.module", torch.cat([next_act, next_obs], -1), i)
+                             for i in range(2)])
+        y = batch["next", "reward"] + 0.9 * (~batch["next", "terminated"]) * next_q
+        q = [mlp("qvalue_network_params.module", torch.cat([act, obs], -1), i) for i in range(2)]
+        expected = sum(((qi - y) ** 2).mean() for qi in q)
+        torch.manual_seed(5)
+        metrics = update(batch, update_actor=False)
+        torch.testing.assert_close(metrics["loss_qvalue"], expected)
+        assert len(grads) == 1  # the critic step only
+
+    def test_actor_step_moves_targets_by_tau(self):
+        torch.manual_seed(0)
+        loss = make_loss(UNIT)
+        update = make_update(loss, "fused")
+        before = {k: v.clone() for k, v in loss.state_dict().items()}
+        update(make_batch(UNIT, seed=0), update_actor=False)
+        after_critic = loss.state_dict()
+        for key in before:  # a critic step leaves the actor and every target alone
+            if key.startswith(("target_", "actor_network_params")):
+                torch.testing.assert_close(after_critic[key], before[key], rtol=0, atol=0)
+        update(make_batch(UNIT, seed=1), update_actor=True)
+        after = loss.state_dict()
+        for key in before:
+            if key.startswith("target_") and key.endswith(("weight", "bias")):
+                source = after[key[len("target_"):]]
+                torch.testing.assert_close(after[key], before[key] + 0.05 * (source - before[key]))
+
+    def test_no_host_sync(self):
+        """The fused step never reads a tensor value on the host (device-agnostic check).
+
+        With fused Adam, as the example uses: the default single-tensor Adam reads its step
+        counter with ``.item()``."""
+        torch.manual_seed(0)
+        loss = make_loss(UNIT, mixing="weights")
+        update = make_update(loss, "fused", fused_adam=True)
+        batch = make_batch(UNIT, seed=0)
+        update(batch, update_actor=True)  # first call: optimizer state allocation
+        with _HostReads() as reads:
+            update(batch, update_actor=True)
+            update(batch, update_actor=False)
+        assert reads.calls == []
+
+    def test_bf16_close_to_fp32(self):
+        """Reduced precision: losses within 5% and gradients within 5% (relative norm) of fp32."""
+        torch.manual_seed(0)
+        base = make_loss(UNIT, num_cells=(64, 64))
+        results = {}
+        for precision in ("fp32", "bf16"):
+            update = make_update(copy.deepcopy(base), "fused", precision=precision)
+            grads = recording(update)
+            torch.manual_seed(1)
+            results[precision] = (update(make_batch(UNIT, seed=0), update_actor=True), grads)
+        (m32, g32), (m16, g16) = results["fp32"], results["bf16"]
+        for key in m32:
+            torch.testing.assert_close(m16[key], m32[key], rtol=0.05, atol=1e-2, msg=key)
+        for step32, step16 in zip(g32, g16):
+            for a, b in zip(step32, step16):
+                if a is not None:
+                    assert (b - a).norm() <= 0.05 * a.norm() + 1e-6
+        # bf16 actually ran: the losses differ from fp32 beyond float32 rounding
+        assert not torch.equal(m16["loss_qvalue"], m32["loss_qvalue"])
+
+    def test_compiled_equals_eager(self):
+        """torch.compile of the whole step (TorchRL's compile_with_warmup pattern) gives the same step."""
+        import torch._inductor.config as inductor_config
+
+        torch.manual_seed(0)
+        base = make_loss(UNIT, num_cells=(8,))
+        states = []
+        for compiled in (False, True):
+            loss = copy.deepcopy(base)
+            update = make_update(loss, "fused")
+            step = torch.compile(update.__call__) if compiled else update
+            torch.manual_seed(1)
+            with inductor_config.patch(fallback_random=True):  # eager's RNG stream in compiled code
+                for i in range(3):
+                    step(make_batch(UNIT, seed=i), update_actor=i % 2 == 0)
+            states.append(loss.state_dict())
+        for key in states[0]:
+            torch.testing.assert_close(states[1][key], states[0][key], rtol=1e-5, atol=1e-6, msg=key)
+
+    def test_refuses_unsupported(self):
+        loss = make_loss(UNIT)
+        loss.qvalue_network.module.append(nn.LayerNorm(1))
+        with pytest.raises(TypeError, match="LayerNorm at position 5"):
+            make_update(loss, "fused")
+        make_update(loss, "loss")  # the reference runs any network
+        with pytest.raises(ValueError, match="implementation must be 'fused' or 'loss'"):
+            make_update(make_loss(UNIT), "fast")
+        with pytest.raises(ValueError, match="precision must be one of"):
+            make_update(make_loss(UNIT), "fused", precision="fp16")
+        td1 = make_loss(UNIT)
+        td1.make_value_estimator(gamma=0.9, lmbda=0.9, value_type="tdlambda")
+        with pytest.raises(ValueError, match="TD\\(0\\) target"):
+            make_update(td1, "fused")
+
+
+class _HostReads(TorchFunctionMode):
+    """Records calls that copy a tensor value to the host (a device synchronisation on CUDA)."""
+
+    _SYNCING = {torch.Tensor.item, torch.Tensor.tolist, torch.Tensor.__bool__, torch.Tensor.__int__,
+                torch.Tensor.__float__, torch.Tensor.nonzero, torch.nonzero, torch.masked_select,
+                torch.Tensor.masked_select, torch.Tensor.numpy}
+
+    def __enter__(self):
+        self.calls = []
+        return super().__enter__()
+
+    def __torch_function__(self, func, types, args=(), kwargs=None):
+        kwargs = kwargs or {}
+        if func in self._SYNCING:
+            self.calls.append(func.__name__)
+        if func is torch.Tensor.__getitem__ and any(
+                isinstance(i, torch.Tensor) and i.dtype == torch.bool
+                for i in (args[1] if isinstance(args[1], tuple) else (args[1],))):
+            self.calls.append("boolean indexing")
+        return func(*args, **kwargs)
+
+
+if __name__ == "__main__":
+    args, unknown = argparse.ArgumentParser().parse_known_args()
+    pytest.main([__file__, "--capture", "no", "--exitfirst"] + unknown)

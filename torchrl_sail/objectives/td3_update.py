@@ -1,0 +1,342 @@
+"""One whole TD3 gradient step (critic, then actor and targets) for a TD3Loss or SAILLoss.
+
+:class:`~torchrl.objectives.TD3Loss` evaluates its networks through TensorDict modules,
+``to_module`` parameter swaps and ``vmap``; on a CPU at SAIL's sizes ([400, 300] nets,
+batch 256) that machinery costs as much as a third of a gradient step. :class:`TD3Update`
+runs the same step on the loss's own parameters with plain tensor operations: the twin
+critics as one batched matrix product over their stacked parameters, the actor objective
+on the first critic only (the only one it reads), one ``_foreach_lerp_`` for the targets.
+The reference implementation (``implementation="loss"``) calls the loss's
+``value_loss``/``actor_loss``, the optimizers and the target updater, as TorchRL's TD3
+script does; both give the same losses, gradients and parameters (tested).
+"""
+from __future__ import annotations
+
+from typing import Literal
+
+import torch
+import torch.nn.functional as F
+from tensordict import TensorDictBase
+from tensordict.nn import TensorDictModule, TensorDictSequential
+from torch import nn
+from torchrl.modules import TanhModule
+from torchrl.objectives import SoftUpdate, TD3Loss
+from torchrl.objectives.utils import distance_loss
+from torchrl.objectives.value import TD0Estimator
+
+__all__ = ["TD3Update"]
+
+_PRECISIONS = {"fp32": None, "bf16": torch.bfloat16}
+
+
+def _mlp_program(mlp: nn.Module, params: TensorDictBase, what: str) -> list:
+    """The layers of ``mlp`` bound to ``params``: ``(weight, bias)`` pairs and activations."""
+    if not isinstance(mlp, nn.Sequential):
+        raise TypeError(f"TD3Update needs the {what} to be an nn.Sequential MLP (e.g. torchrl's MLP), "
+                        f"got {type(mlp).__name__}; use implementation='loss' for other networks.")
+    program = []
+    for name, layer in mlp.named_children():
+        if isinstance(layer, nn.Linear):
+            program.append((params[name, "weight"], params[name, "bias"] if layer.bias is not None else None))
+        elif isinstance(layer, nn.modules.dropout._DropoutNd) or any(True for _ in layer.parameters(recurse=True)) \
+                or any(True for _ in layer.buffers(recurse=True)):
+            raise TypeError(f"TD3Update runs Linear layers and parameter-free activations; the {what} has "
+                            f"{type(layer).__name__} at position {name}: use implementation='loss'.")
+        else:
+            program.append(layer)
+    return program
+
+
+def _run(program: list, x: torch.Tensor, *, detach: bool = False) -> torch.Tensor:
+    """Evaluates an MLP program on ``x`` (``[B, in]``).
+
+    Stacked ``[n, out, in]`` parameters give ``[n, B, out]``: every layer is one batched
+    product for the whole ensemble, computed feature-major (``W @ h^T``) so that the weight
+    gradients come out contiguous instead of as transposes that autograd would copy.
+    """
+    stacked = False
+    for layer in program:
+        if isinstance(layer, tuple):
+            weight, bias = layer
+            if detach:
+                weight, bias = weight.detach(), None if bias is None else bias.detach()
+            if weight.dim() == 2:
+                x = F.linear(x, weight, bias)
+                continue
+            if not stacked:
+                x = x.mT.expand(weight.shape[0], *x.mT.shape)
+                stacked = True
+            x = torch.bmm(weight, x) if bias is None else torch.baddbmm(bias.unsqueeze(-1), weight, x)
+        else:
+            x = layer(x)
+    return x.mT if stacked else x
+
+
+def _first(program: list) -> list:
+    """The program of the first network of a stacked ensemble."""
+    return [(layer[0][0], None if layer[1] is None else layer[1][0]) if isinstance(layer, tuple) else layer
+            for layer in program]
+
+
+class TD3Update:
+    """One TD3 gradient step of a :class:`~torchrl.objectives.TD3Loss` (e.g. a SAILLoss).
+
+    A call runs the critic step (``value_loss``, backward, ``critic_optimizer.step()``)
+    and, when ``update_actor`` is ``True`` (every ``policy_delay``-th step in TD3), the
+    actor step (``actor_loss``, backward, ``actor_optimizer.step()``) followed by the
+    target update of ``target_updater``; :meth:`critic_step`, :meth:`actor_step` and
+    :meth:`update_targets` run the three parts alone. The parameters, the optimizers and
+    the target updater are the caller's: checkpoints and schedules are unchanged.
+
+    Two implementations of the same step:
+
+    - ``"fused"`` (default): plain tensor operations on the loss's parameters. The twin
+      critics run as one batched product over their stacked ``[num_qvalue_nets, ...]``
+      parameters; the actor objective ``-Q_1(s, \\pi(s))`` evaluates the first critic only
+      (``TD3Loss`` evaluates every critic and keeps the first); the targets move with one
+      ``torch._foreach_lerp_``. Reductions go through the loss's ``_reduce_loss`` and
+      per-row weights through its ``_maybe_get_priority_weight`` hook, so loss masks,
+      prioritized weights and ``SAILLoss(mixing="weights")`` act as in the loss. It
+      supports what SAIL uses: an actor ``TensorDictSequential(TensorDictModule(MLP),
+      TanhModule)``, a critic ``TensorDictModule(MLP)`` (its ``in_keys`` concatenated in
+      order, as :class:`~torchrl.modules.MLP` does), target networks for both, a TD(0)
+      value estimator and a :class:`~torchrl.objectives.SoftUpdate`; anything else is
+      refused at construction with the reason.
+    - ``"loss"``: the reference, the loss's own ``value_loss``/``actor_loss`` and
+      ``target_updater.step()``, as TorchRL's TD3 script runs them. Works for any network.
+
+    The policy-smoothing noise is drawn at the same point of both implementations, so a
+    seeded step gives the same result with either (to float rounding).
+
+    Args:
+        loss (TD3Loss): the loss whose parameters are trained (a
+            :class:`~torchrl_sail.SAILLoss` or any ``TD3Loss``), with its value estimator
+            made (``loss.make_value_estimator(gamma=...)``).
+
+    Keyword Args:
+        critic_optimizer (torch.optim.Optimizer): optimizer of
+            ``loss.qvalue_network_params``.
+        actor_optimizer (torch.optim.Optimizer): optimizer of
+            ``loss.actor_network_params``.
+        target_updater (SoftUpdate): the target updater built on ``loss``.
+        implementation (str, optional): ``"fused"`` or ``"loss"``. Defaults to ``"fused"``.
+        precision (str, optional): ``"fp32"`` or ``"bf16"`` (autocast of the network
+            evaluations to bfloat16: AMX on recent Xeons, tensor cores on CUDA; the
+            parameters, optimizer states and loss reductions stay float32). Defaults to
+            ``"fp32"``.
+
+    Examples:
+        >>> import torch
+        >>> from tensordict import TensorDict
+        >>> from tensordict.nn import TensorDictModule, TensorDictSequential
+        >>> from torchrl.data import Bounded
+        >>> from torchrl.modules import MLP, TanhModule, ValueOperator
+        >>> from torchrl.objectives import SoftUpdate
+        >>> from torchrl_sail import SAILLoss, TD3Update
+        >>> _ = torch.manual_seed(0)
+        >>> spec = Bounded(-1.0, 1.0, (2,))
+        >>> actor = TensorDictSequential(
+        ...     TensorDictModule(MLP(in_features=3, out_features=2, num_cells=[16]), ["observation"], ["param"]),
+        ...     TanhModule(["param"], ["action"], spec=spec))
+        >>> critic = ValueOperator(MLP(in_features=5, out_features=1, num_cells=[16]), in_keys=["action", "observation"])
+        >>> loss = SAILLoss(actor, critic, action_spec=spec)
+        >>> loss.make_value_estimator(gamma=0.99)
+        >>> update = TD3Update(
+        ...     loss,
+        ...     critic_optimizer=torch.optim.Adam(loss.qvalue_network_params.flatten_keys().values()),
+        ...     actor_optimizer=torch.optim.Adam(loss.actor_network_params.flatten_keys().values()),
+        ...     target_updater=SoftUpdate(loss, tau=0.005))
+        >>> batch = TensorDict({
+        ...     "observation": torch.randn(8, 3), "action": spec.rand((8,)),
+        ...     ("next", "observation"): torch.randn(8, 3), ("next", "reward"): torch.randn(8, 1),
+        ...     ("next", "done"): torch.zeros(8, 1, dtype=torch.bool),
+        ...     ("next", "terminated"): torch.zeros(8, 1, dtype=torch.bool)}, [8])
+        >>> metrics = update(batch, update_actor=True)
+        >>> sorted(metrics)
+        ['loss_actor', 'loss_qvalue', 'q_mean']
+    """
+
+    def __init__(
+        self,
+        loss: TD3Loss,
+        *,
+        critic_optimizer: torch.optim.Optimizer,
+        actor_optimizer: torch.optim.Optimizer,
+        target_updater: SoftUpdate,
+        implementation: Literal["fused", "loss"] = "fused",
+        precision: Literal["fp32", "bf16"] = "fp32",
+    ) -> None:
+        if implementation not in ("fused", "loss"):
+            raise ValueError(f"implementation must be 'fused' or 'loss', got {implementation!r}.")
+        if precision not in _PRECISIONS:
+            raise ValueError(f"precision must be one of {sorted(_PRECISIONS)}, got {precision!r}.")
+        if not isinstance(loss, TD3Loss):
+            raise TypeError(f"TD3Update needs a TD3Loss (e.g. SAILLoss), got {type(loss).__name__}.")
+        self.loss = loss
+        self.critic_optimizer = critic_optimizer
+        self.actor_optimizer = actor_optimizer
+        self.target_updater = target_updater
+        self.implementation = implementation
+        self.precision = precision
+        self._device_type = loss.max_action.device.type
+        if implementation == "fused":
+            self._bind()
+
+    def _bind(self) -> None:
+        """Checks the loss is one the fused step implements, and binds its parameters."""
+        loss = self.loss
+        if not (loss.delay_actor and loss.delay_qvalue):
+            raise ValueError("TD3Update(implementation='fused') needs target networks for the actor and the "
+                             "critic (TD3Loss(delay_actor=True, delay_qvalue=True), the default).")
+        estimator = loss.value_estimator
+        if type(estimator) is not TD0Estimator or estimator.average_rewards:
+            raise ValueError(f"TD3Update(implementation='fused') implements the TD(0) target; the loss has "
+                             f"{type(estimator).__name__}: use implementation='loss'.")
+        if not isinstance(self.target_updater, SoftUpdate):
+            raise TypeError(f"TD3Update(implementation='fused') implements SoftUpdate's Polyak step, got "
+                            f"{type(self.target_updater).__name__}: use implementation='loss'.")
+        actor = loss.actor_network
+        if not (isinstance(actor, TensorDictSequential) and len(actor.module) == 2
+                and isinstance(actor.module[0], TensorDictModule) and isinstance(actor.module[1], TanhModule)):
+            raise TypeError("TD3Update(implementation='fused') needs the actor to be "
+                            "TensorDictSequential(TensorDictModule(MLP), TanhModule): use implementation='loss'.")
+        body, tanh = actor.module
+        if list(tanh.in_keys) != list(body.out_keys) or len(tanh.out_keys) != 1 \
+                or tanh.out_keys[0] != loss.tensor_keys.action:
+            raise TypeError("TD3Update(implementation='fused') needs the TanhModule to map the MLP output to "
+                            f"{loss.tensor_keys.action!r}; got {tanh.in_keys} -> {tanh.out_keys}.")
+        critic = loss.qvalue_network
+        if not isinstance(critic, TensorDictModule) or isinstance(critic, TensorDictSequential) or len(critic.out_keys) != 1 \
+                or loss.tensor_keys.action not in critic.in_keys:
+            raise TypeError("TD3Update(implementation='fused') needs the critic to be one TensorDictModule "
+                            f"(e.g. ValueOperator(MLP)) reading {loss.tensor_keys.action!r}.")
+        self._actor_in_keys = list(body.in_keys)
+        self._critic_in_keys = list(critic.in_keys)
+        self._tanh = tanh
+        self._tanh_key = tanh.out_keys[0] if isinstance(tanh.out_keys[0], str) else "_".join(tanh.out_keys[0])
+        params = {name: getattr(loss, name) for name in (
+            "actor_network_params", "target_actor_network_params",
+            "qvalue_network_params", "target_qvalue_network_params")}
+        self._actor = _mlp_program(body.module, params["actor_network_params"]["module", "0", "module"], "actor")
+        self._target_actor = _mlp_program(
+            body.module, params["target_actor_network_params"]["module", "0", "module"], "actor")
+        self._critic = _mlp_program(critic.module, params["qvalue_network_params"]["module"], "critic")
+        self._target_critic = _mlp_program(critic.module, params["target_qvalue_network_params"]["module"], "critic")
+        self._critic_first = _first(self._critic)
+        # SoftUpdate's own source/target pairing, as flat lists for one foreach call.
+        updater = self.target_updater
+        sources = updater._sources
+        self._polyak_sources = [sources[key].data for key in sources.keys(True, True)]
+        self._polyak_targets = [updater._targets[("target_" + key[0], *key[1:]) if isinstance(key, tuple)
+                                                 else "target_" + key].data for key in sources.keys(True, True)]
+        self._tau = 1.0 - updater.eps
+
+    def _autocast(self):
+        dtype = _PRECISIONS[self.precision]
+        return torch.autocast(self._device_type, dtype=dtype, enabled=dtype is not None)
+
+    def _action(self, program: list, obs: torch.Tensor) -> torch.Tensor:
+        # TanhModule's map: tanh, optional clamp, affine map onto [low, high] when not [-1, 1]
+        feature = _run(program, obs).tanh()
+        tanh = self._tanh
+        if tanh.clamp:
+            eps = torch.finfo(feature.dtype).resolution
+            feature = feature.clamp(-1 + eps, 1 - eps)
+        if tanh.non_trivial:
+            low, high = getattr(tanh, f"{self._tanh_key}_low"), getattr(tanh, f"{self._tanh_key}_high")
+            feature = low + (high - low) * (feature + 1) / 2
+        return feature
+
+    def _critic_input(self, batch: TensorDictBase, action: torch.Tensor, prefix: tuple = ()) -> torch.Tensor:
+        action_key = self.loss.tensor_keys.action
+        parts = [action if key == action_key else batch[(*prefix, key) if prefix else key]
+                 for key in self._critic_in_keys]
+        return torch.cat(parts, -1) if len(parts) > 1 else parts[0]
+
+    def _actor_input(self, batch: TensorDictBase, prefix: tuple = ()) -> torch.Tensor:
+        parts = [batch[(*prefix, key) if prefix else key] for key in self._actor_in_keys]
+        return torch.cat(parts, -1) if len(parts) > 1 else parts[0]
+
+    def __call__(self, batch: TensorDictBase, update_actor: bool) -> dict[str, torch.Tensor]:
+        """Runs one gradient step on ``batch`` and returns detached metrics.
+
+        The critic step, then, if ``update_actor``, the actor step and the target update.
+
+        Args:
+            batch (TensorDictBase): a ``[B]`` batch of transitions with the loss's keys.
+            update_actor (bool): also run the actor step and the target update.
+
+        Returns:
+            ``{"loss_qvalue", "q_mean"}`` and, on actor steps, ``"loss_actor"``: detached
+            scalar tensors (no host synchronisation).
+        """
+        metrics = self.critic_step(batch)
+        if update_actor:
+            metrics.update(self.actor_step(batch))
+            self.update_targets()
+        return metrics
+
+    def critic_step(self, batch: TensorDictBase) -> dict[str, torch.Tensor]:
+        """``value_loss``, its backward and ``critic_optimizer.step()``.
+
+        Args:
+            batch (TensorDictBase): a ``[B]`` batch of transitions with the loss's keys.
+        """
+        loss = self.loss
+        if self.implementation == "loss":
+            with self._autocast():
+                loss_q, info = loss.value_loss(batch)
+            q = info["pred_value"]
+        else:
+            keys = loss.tensor_keys
+            action = batch[keys.action]
+            # drawn first, as TD3Loss.value_loss does ("for reprod")
+            noise = (torch.randn_like(action) * loss.policy_noise).clamp(-loss.noise_clip, loss.noise_clip)
+            with self._autocast():
+                with torch.no_grad():
+                    next_action = self._action(self._target_actor, self._actor_input(batch, ("next",)))
+                    next_action = (next_action + noise).clamp(loss.min_action, loss.max_action)
+                    next_q = _run(self._target_critic, self._critic_input(batch, next_action, ("next",))).min(0)[0]
+                    not_terminated = (~batch["next", keys.terminated]).int()
+                    target = batch["next", keys.reward] + loss.value_estimator.gamma * not_terminated * next_q.float()
+                    target = target.squeeze(-1)
+                q = _run(self._critic, self._critic_input(batch, action)).squeeze(-1).float()  # [num_qvalue_nets, B]
+                loss_q = loss._reduce_loss(
+                    distance_loss(q, target.expand_as(q), loss_function=loss.loss_function).sum(0),
+                    tensordict=batch, weights=loss._maybe_get_priority_weight(batch))
+        loss_q.backward()
+        self.critic_optimizer.step()
+        self.critic_optimizer.zero_grad(set_to_none=True)
+        return {"loss_qvalue": loss_q.detach(), "q_mean": q.detach().mean()}
+
+    def actor_step(self, batch: TensorDictBase) -> dict[str, torch.Tensor]:
+        """``actor_loss``, its backward and ``actor_optimizer.step()`` (targets not moved).
+
+        Args:
+            batch (TensorDictBase): a ``[B]`` batch of transitions with the loss's keys.
+        """
+        loss = self.loss
+        with self._autocast():
+            if self.implementation == "loss":
+                loss_a, _ = loss.actor_loss(batch)
+            else:
+                pi = self._action(self._actor, self._actor_input(batch))
+                q_pi = _run(self._critic_first, self._critic_input(batch, pi), detach=True).squeeze(-1).float()
+                loss_a = loss._reduce_loss(-q_pi, tensordict=batch, weights=loss._maybe_get_priority_weight(batch))
+        loss_a.backward()
+        self.actor_optimizer.step()
+        self.actor_optimizer.zero_grad(set_to_none=True)
+        return {"loss_actor": loss_a.detach()}
+
+    def update_targets(self) -> None:
+        """The Polyak step of the target networks (``target_updater.step()``)."""
+        if self.implementation == "loss":
+            self.target_updater.step()
+        else:
+            with torch.no_grad():
+                torch._foreach_lerp_(self._polyak_targets, self._polyak_sources, self._tau)
+
+    def __repr__(self) -> str:
+        return (f"{type(self).__name__}(loss={type(self.loss).__name__}, implementation={self.implementation!r}, "
+                f"precision={self.precision!r})")
+
