@@ -83,6 +83,8 @@ def check_config(cfg: DictConfig) -> None:
         ("teacher.eviction", cfg.teacher.eviction, cfg.teacher.eviction in ("topk", "fifo"), "use topk | fifo"),
         ("optim.implementation", o.implementation, o.implementation in ("fused", "loss"), "use fused | loss"),
         ("optim.precision", o.precision, o.precision in ("fp32", "bf16"), "use fp32 | bf16"),
+        ("optim.precision", o.precision, o.precision == "fp32" or o.implementation == "fused",
+         "bf16 needs optim.implementation=fused"),
         ("collector.backend", c.backend, c.backend in (None, "direct", "process", "ray"),
          "use null, direct, process or ray"),
         ("collector.backend", c.backend, c.backend != "direct" or c.num_workers == 1,

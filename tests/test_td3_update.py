@@ -228,6 +228,24 @@ class TestTD3Update:
         # bf16 actually ran: the losses differ from fp32 beyond float32 rounding
         assert not torch.equal(m16["loss_qvalue"], m32["loss_qvalue"])
 
+    def test_bf16_actor_gradient_survives_saturation(self):
+        """The actor's tanh runs in float32 under bf16: a saturating policy keeps its gradient.
+
+        With pre-activations around 4, bfloat16 rounds tanh to exactly 1 and its gradient to 0,
+        while float32 still has 1 - tanh(4)^2 = 1.3e-3: the actor would stop learning."""
+        torch.manual_seed(0)
+        base = make_loss(UNIT, num_cells=(64, 64))
+        with torch.no_grad():
+            base.actor_network_params["module", "0", "module", "4", "bias"].fill_(4.0)
+        grads = {}
+        for precision in ("fp32", "bf16"):
+            update = make_update(copy.deepcopy(base), "fused", precision=precision)
+            recorded = recording(update)
+            update.actor_step(make_batch(UNIT, seed=0))
+            grads[precision] = torch.cat([g.flatten() for g in recorded[-1] if g is not None])
+        assert grads["fp32"].norm() > 0
+        assert (grads["bf16"] - grads["fp32"]).norm() <= 0.05 * grads["fp32"].norm()
+
     def test_compiled_equals_eager(self):
         """torch.compile of the whole step (TorchRL's compile_with_warmup pattern) gives the same step."""
         import torch._inductor.config as inductor_config
@@ -257,6 +275,8 @@ class TestTD3Update:
             make_update(make_loss(UNIT), "fast")
         with pytest.raises(ValueError, match="precision must be one of"):
             make_update(make_loss(UNIT), "fused", precision="fp16")
+        with pytest.raises(ValueError, match="needs implementation='fused'"):
+            make_update(make_loss(UNIT), "loss", precision="bf16")
         td1 = make_loss(UNIT)
         td1.make_value_estimator(gamma=0.9, lmbda=0.9, value_type="tdlambda")
         with pytest.raises(ValueError, match="TD\\(0\\) target"):

@@ -122,8 +122,8 @@ class TD3Update:
         implementation (str, optional): ``"fused"`` or ``"loss"``. Defaults to ``"fused"``.
         precision (str, optional): ``"fp32"`` or ``"bf16"`` (autocast of the network
             evaluations to bfloat16: AMX on recent Xeons, tensor cores on CUDA; the
-            parameters, optimizer states and loss reductions stay float32). Defaults to
-            ``"fp32"``.
+            parameters, optimizer states, loss reductions and the actor's tanh stay
+            float32). ``"bf16"`` needs ``implementation="fused"``. Defaults to ``"fp32"``.
 
     Examples:
         >>> import torch
@@ -170,6 +170,9 @@ class TD3Update:
             raise ValueError(f"implementation must be 'fused' or 'loss', got {implementation!r}.")
         if precision not in _PRECISIONS:
             raise ValueError(f"precision must be one of {sorted(_PRECISIONS)}, got {precision!r}.")
+        if precision != "fp32" and implementation != "fused":
+            # TanhModule would squash in reduced precision, where its gradient vanishes early.
+            raise ValueError(f"precision={precision!r} needs implementation='fused'.")
         if not isinstance(loss, TD3Loss):
             raise TypeError(f"TD3Update needs a TD3Loss (e.g. SAILLoss), got {type(loss).__name__}.")
         self.loss = loss
@@ -236,8 +239,10 @@ class TD3Update:
         return torch.autocast(self._device_type, dtype=dtype, enabled=dtype is not None)
 
     def _action(self, program: list, obs: torch.Tensor) -> torch.Tensor:
-        # TanhModule's map: tanh, optional clamp, affine map onto [low, high] when not [-1, 1]
-        feature = _run(program, obs).tanh()
+        # TanhModule's map: tanh, optional clamp, affine map onto [low, high] when not [-1, 1].
+        # The squashing runs in float32 also under bf16 autocast: in bfloat16, tanh(x) rounds to
+        # exactly +-1 from |x| ~ 3 on, and its gradient 1 - tanh^2 to 0, which stalls the actor.
+        feature = _run(program, obs).float().tanh()
         tanh = self._tanh
         if tanh.clamp:
             eps = torch.finfo(feature.dtype).resolution
