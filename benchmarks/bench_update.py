@@ -10,8 +10,8 @@ ReLU nets, batch 256, Hopper dims 12/3), each timed alone (median ms per call):
   128 + 128 one batch per call, and per batch of a 1000-batch block (``num_batches``), each
   with and without the ``DiscriminatorReward`` recomputed at sample time;
 - the TD3 step of ``TD3Update``: the reference (``implementation="loss"``: SAILLoss's
-  ``value_loss``/``actor_loss``, SoftUpdate) and the fused implementation, fp32 and bf16,
-  split into critic step, actor step and target update;
+  ``value_loss``/``actor_loss``, SoftUpdate, fp32) and the fused implementation (fp32 and
+  bf16), split into critic step, actor step and target update;
 - one discriminator step (256 + 256 rows, gradient penalty included).
 
 ``--scale`` adds the per-step cost (block sample with D reward + fused step) and the
@@ -113,17 +113,16 @@ def pieces(iters: int) -> dict:
     for name in list(results):
         if "block" in name:
             results[name] /= 1000
-    for implementation in ("loss", "fused"):
-        for precision in ("fp32", "bf16"):
-            update = make_update(implementation, precision)
-            tag = f"TD3 step [{implementation}, {precision}]"
-            critic = timed(lambda i: update.critic_step(batches[i % 64]), iters)
-            actor = timed(lambda i: update.actor_step(batches[i % 64]), iters)
-            targets = timed(lambda i: update.update_targets(), iters)
-            results[f"{tag} critic step"] = critic
-            results[f"{tag} actor step"] = actor
-            results[f"{tag} target update"] = targets
-            results[f"{tag} per frame (critic + (actor + targets) / 2)"] = critic + (actor + targets) / 2
+    for implementation, precision in (("loss", "fp32"), ("fused", "fp32"), ("fused", "bf16")):
+        update = make_update(implementation, precision)
+        tag = f"TD3 step [{implementation}, {precision}]"
+        critic = timed(lambda i: update.critic_step(batches[i % 64]), iters)
+        actor = timed(lambda i: update.actor_step(batches[i % 64]), iters)
+        targets = timed(lambda i: update.update_targets(), iters)
+        results[f"{tag} critic step"] = critic
+        results[f"{tag} actor step"] = actor
+        results[f"{tag} target update"] = targets
+        results[f"{tag} per frame (critic + (actor + targets) / 2)"] = critic + (actor + targets) / 2
     d_loss = DiscriminatorLoss(disc)
     d_opt = torch.optim.Adam(disc.parameters(), lr=1e-3, fused=True)
     d_batches = plain.sample(512, 0.5, num_batches=64).unbind(0)

@@ -119,7 +119,7 @@ def main(cfg):  # noqa: F821
     collector = make_collector(cfg, env, exploration_policy, frames=frames)
     pbar = tqdm.tqdm(total=cfg.collector.total_frames, initial=frames, unit="frames")
     start, start_frames, last_log, metrics = time.time(), frames, frames, {}
-    train_clock = None  # (time, frames, gradient steps) when warm-up ended: the timed part
+    train_clock = None  # (time, frames) when warm-up ended: the start of the timed part
     collector_iter = iter(collector)
     for _ in range(len(collector) if collector.total_frames else 0):  # 0 frames left: a finished run
         if train_clock is None and frames >= warmup:
@@ -162,7 +162,9 @@ def main(cfg):  # noqa: F821
                 metrics.update({f"sail/{key}": value for key, value in out.items()})
         num_d_steps = crossings(d.every_frames, warmup, before, frames) * d.steps if reward is not None else 0
         if num_d_steps:
-            for batch in d_batches.sample(2 * d.batch_size, teacher_fraction=0.5, num_batches=num_d_steps).unbind(0):
+            with timeit("sample"):
+                d_block = d_batches.sample(2 * d.batch_size, teacher_fraction=0.5, num_batches=num_d_steps)
+            for batch in d_block.unbind(0):
                 with timeit("discriminator"):
                     metrics.update(discriminator_update(batch))
         # Worker processes or Ray actors act with a copy of the policy.

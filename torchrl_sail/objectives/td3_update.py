@@ -2,7 +2,8 @@
 
 :class:`~torchrl.objectives.TD3Loss` evaluates its networks through TensorDict modules,
 ``to_module`` parameter swaps and ``vmap``; on a CPU at SAIL's sizes ([400, 300] nets,
-batch 256) that machinery costs as much as a third of a gradient step. :class:`TD3Update`
+batch 256) that machinery and the second critic evaluated by the actor loss cost about a
+quarter of a gradient step (``benchmarks/bench_update.py``). :class:`TD3Update`
 runs the same step on the loss's own parameters with plain tensor operations: the twin
 critics as one batched matrix product over their stacked parameters, the actor objective
 on the first critic only (the only one it reads), one ``_foreach_lerp_`` for the targets.
@@ -247,7 +248,7 @@ class TD3Update:
         if tanh.clamp:
             eps = torch.finfo(feature.dtype).resolution
             feature = feature.clamp(-1 + eps, 1 - eps)
-        if tanh.non_trivial:
+        if tanh.non_trivial:  # as TanhModule tests it (a dict of flags: the map always runs there too)
             low, high = getattr(tanh, f"{self._tanh_key}_low"), getattr(tanh, f"{self._tanh_key}_high")
             feature = low + (high - low) * (feature + 1) / 2
         return feature
