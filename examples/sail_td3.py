@@ -155,11 +155,12 @@ def main(cfg):  # noqa: F821
             with timeit("sample"), reduced_precision:  # the D reward too, with precision=bf16
                 block = sail_batches.sample(o.batch_size, teacher_fraction=alpha, num_batches=num_updates)
             metrics["sail/d_reward_mean"] = block["next", "reward"].mean()
+            last = {}
             for batch in block.unbind(0):
                 gradient_steps += 1
                 with timeit("update"):
-                    out = update(batch, update_actor=gradient_steps % o.policy_delay == 0)
-                metrics.update({f"sail/{key}": value for key, value in out.items()})
+                    last.update(update(batch, update_actor=gradient_steps % o.policy_delay == 0))
+            metrics.update({f"sail/{key}": value for key, value in last.items()})
         num_d_steps = crossings(d.every_frames, warmup, before, frames) * d.steps if reward is not None else 0
         if num_d_steps:
             with timeit("sample"):

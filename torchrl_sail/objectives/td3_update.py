@@ -48,7 +48,7 @@ def _mlp_program(mlp: nn.Module, params: TensorDictBase, what: str) -> list:
     return program
 
 
-def _run(program: list, x: torch.Tensor, *, detach: bool = False) -> torch.Tensor:
+def _run(program: list, x: torch.Tensor) -> torch.Tensor:
     """Evaluates an MLP program on ``x`` (``[B, in]``).
 
     Stacked ``[n, out, in]`` parameters give ``[n, B, out]``: every layer is one batched
@@ -59,8 +59,6 @@ def _run(program: list, x: torch.Tensor, *, detach: bool = False) -> torch.Tenso
     for layer in program:
         if isinstance(layer, tuple):
             weight, bias = layer
-            if detach:
-                weight, bias = weight.detach(), None if bias is None else bias.detach()
             if weight.dim() == 2:
                 x = F.linear(x, weight, bias)
                 continue
@@ -73,9 +71,13 @@ def _run(program: list, x: torch.Tensor, *, detach: bool = False) -> torch.Tenso
     return x.mT if stacked else x
 
 
-def _first(program: list) -> list:
-    """The program of the first network of a stacked ensemble."""
-    return [(layer[0][0], None if layer[1] is None else layer[1][0]) if isinstance(layer, tuple) else layer
+def _first_detached(program: list) -> list:
+    """The first network of a stacked ensemble, on detached views of its parameters.
+
+    The views share storage with the parameters, so optimizer steps show through; no gradient
+    reaches them (the actor loss trains the actor only).
+    """
+    return [tuple(None if t is None else t.detach()[0] for t in layer) if isinstance(layer, tuple) else layer
             for layer in program]
 
 
@@ -226,7 +228,7 @@ class TD3Update:
             body.module, params["target_actor_network_params"]["module", "0", "module"], "actor")
         self._critic = _mlp_program(critic.module, params["qvalue_network_params"]["module"], "critic")
         self._target_critic = _mlp_program(critic.module, params["target_qvalue_network_params"]["module"], "critic")
-        self._critic_first = _first(self._critic)
+        self._critic_first = _first_detached(self._critic)
         # SoftUpdate's own source/target pairing, as flat lists for one foreach call.
         updater = self.target_updater
         sources = updater._sources
@@ -327,7 +329,7 @@ class TD3Update:
                 loss_a, _ = loss.actor_loss(batch)
             else:
                 pi = self._action(self._actor, self._actor_input(batch))
-                q_pi = _run(self._critic_first, self._critic_input(batch, pi), detach=True).squeeze(-1).float()
+                q_pi = _run(self._critic_first, self._critic_input(batch, pi)).squeeze(-1).float()
                 loss_a = loss._reduce_loss(-q_pi, tensordict=batch, weights=loss._maybe_get_priority_weight(batch))
         loss_a.backward()
         self.actor_optimizer.step()
