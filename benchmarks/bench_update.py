@@ -8,14 +8,16 @@ ReLU nets, batch 256, Hopper dims 12/3), each timed alone (median ms per call):
 
 - sampling: TorchRL's ``TensorDictReplayBuffer.sample(256)`` [peer], ``MixedReplayBuffer``
   128 + 128 one batch per call, and per batch of a 1000-batch block (``num_batches``), each
-  with and without the ``DiscriminatorReward`` recomputed at sample time;
+  with and without the ``DiscriminatorReward`` recomputed at sample time, and the block
+  with D run once per distinct stored row (``row_id_key``);
 - the TD3 step of ``TD3Update``: the reference (``implementation="loss"``: SAILLoss's
   ``value_loss``/``actor_loss``, SoftUpdate, fp32) and the fused implementation (fp32 and
   bf16), split into critic step, actor step and target update;
 - one discriminator step (256 + 256 rows, gradient penalty included).
 
-``--scale`` adds the per-step cost (block sample with D reward + fused step) and the
-process's resident memory for replay sizes 1e5 and 1e6 (filled) and batch 256 and 1024.
+``--scale`` adds the per-step cost (block sample with D reward, on every row and once per
+distinct row, + fused step) and the process's resident memory for replay sizes 1e4, 1e5 and
+1e6 (filled) and batch 256 and 1024.
 """
 from __future__ import annotations
 
@@ -109,6 +111,10 @@ def pieces(iters: int) -> dict:
         "sample + D reward, one batch per call": lambda i: rewarded.sample(256, 0.5),
         "sample + D reward, per batch of a 1000-batch block": lambda i: rewarded.sample(256, 0.5, 1000),
     }
+    distinct = MixedReplayBuffer(teacher, agent, transform=DiscriminatorReward(disc, row_id_key="row_id"),
+                                 row_id_key="row_id")
+    rows["sample + D reward once per distinct row, per batch of a 1000-batch block (replay 1e5)"] = \
+        lambda i: distinct.sample(256, 0.5, 1000)
     results = {name: timed(fn, iters if "block" not in name else max(iters // 50, 5)) for name, fn in rows.items()}
     for name in list(results):
         if "block" in name:
@@ -137,19 +143,33 @@ def pieces(iters: int) -> dict:
     return results
 
 
+def mean_ms(fn, iters: int, warmup: int = 10) -> float:
+    """Mean ms per call of ``fn(i)`` (for alternating steps, whose median would pick one kind)."""
+    for i in range(warmup):
+        fn(i)
+    t0 = time.perf_counter()
+    for i in range(iters):
+        fn(i)
+    return (time.perf_counter() - t0) / iters * 1e3
+
+
 def scale(iters: int) -> list[tuple]:
     rows = []
     update = make_update("fused", "fp32")
-    for replay_size in (100_000, 1_000_000):
+    disc = Discriminator(OBS, ACT)
+    for replay_size in (10_000, 100_000, 1_000_000):
         teacher, agent = buffers(replay_size)
-        rewarded = MixedReplayBuffer(teacher, agent, transform=DiscriminatorReward(Discriminator(OBS, ACT)))
+        every_row = MixedReplayBuffer(teacher, agent, transform=DiscriminatorReward(disc))
+        distinct = MixedReplayBuffer(teacher, agent, transform=DiscriminatorReward(disc, row_id_key="row_id"),
+                                     row_id_key="row_id")
         for batch_size in (256, 1024):
-            block_ms = timed(lambda i: rewarded.sample(batch_size, 0.5, 1000), 3, warmup=1) / 1000
-            block = rewarded.sample(batch_size, 0.5, 100).unbind(0)
-            step_ms = timed(lambda i: update(block[i % 100], update_actor=i % 2 == 0), iters // 3)
+            block_ms = [timed(lambda i: rb.sample(batch_size, alpha, 1000), 3, warmup=1) / 1000
+                        for rb, alpha in ((every_row, 0.5), (distinct, 0.5), (distinct, 0.0))]
+            block = every_row.sample(batch_size, 0.5, 100).unbind(0)
+            step_ms = mean_ms(lambda i: update(block[i % 100], update_actor=i % 2 == 0), iters)
             rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-            rows.append((replay_size, batch_size, block_ms, step_ms, rss))
-        del teacher, agent, rewarded
+            rows.append((replay_size, batch_size, *block_ms, step_ms, rss))
+        del teacher, agent, every_row, distinct
     return rows
 
 
@@ -169,10 +189,14 @@ def main():
         fused = results[f"TD3 step [fused, {precision}] per frame (critic + (actor + targets) / 2)"]
         print(f"TD3 step per frame, reference fp32 / fused {precision}: {ref / fused:.2f}x")
     if args.scale:
-        print("| replay (filled) | batch | block sample + D reward, ms per step | fused step, ms | peak RSS MB |")
-        print("|---|---|---|---|---|")
-        for replay_size, batch_size, block_ms, step_ms, rss in scale(args.iters):
-            print(f"| {replay_size:.0e} | {batch_size} | {block_ms:.3f} | {step_ms:.2f} | {rss:.0f} |")
+        print("block sample + D reward, ms per step: every row (alpha 0.5) | once per distinct row (alpha 0.5) "
+              "| once per distinct row (alpha 0, all rows from the replay)")
+        print("| replay (filled) | batch | every row | distinct, alpha 0.5 | distinct, alpha 0 "
+              "| fused step, ms (mean) | peak RSS MB |")
+        print("|---|---|---|---|---|---|---|")
+        for replay_size, batch_size, every, half, zero, step_ms, rss in scale(args.iters):
+            print(f"| {replay_size:.0e} | {batch_size} | {every:.3f} | {half:.3f} | {zero:.3f} | {step_ms:.2f} "
+                  f"| {rss:.0f} |")
 
 
 if __name__ == "__main__":

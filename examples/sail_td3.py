@@ -76,9 +76,10 @@ def main(cfg):  # noqa: F821
     discriminator = make_discriminator(cfg, env)
     loss, target_updater, alpha_scheduler, d_loss = make_losses(cfg, actor, critic, discriminator, env.action_spec)
     optimizers = make_optimizers(cfg, loss, discriminator)
-    # TD3 batches get the imitation reward of the *current* D at sample time (td3_delayed: the env's).
-    reward = DiscriminatorReward(discriminator) if cfg.algo.imitation_reward else None
-    sail_batches = MixedReplayBuffer(teacher, replay, transform=reward)
+    # TD3 batches get the imitation reward of the *current* D at sample time (td3_delayed: the env's),
+    # computed once per distinct stored row of a block (a block draws 256k rows).
+    reward = DiscriminatorReward(discriminator, row_id_key="row_id") if cfg.algo.imitation_reward else None
+    sail_batches = MixedReplayBuffer(teacher, replay, transform=reward, row_id_key="row_id")
     d_batches = MixedReplayBuffer(teacher, recent)
 
     # --- everything a stopped run needs to continue, saved and restored as one

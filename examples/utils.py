@@ -131,7 +131,8 @@ def make_env(cfg: DictConfig, seed: int):
 def make_collector(cfg: DictConfig, env, policy, *, frames: int):
     """TorchRL's ``Collector`` for what is left of the budget after ``frames`` (0 on a fresh run)."""
     backend = cfg.collector.backend or ("process" if cfg.collector.num_workers > 1 else "direct")
-    kwargs = {}
+    # One env in this process: trajectory ids are not needed (episode ends are the done flags).
+    kwargs = {"track_traj_ids": False}
     if backend != "direct":
         options = cfg.collector.backend_options
         kwargs = {"backend": backend, "num_collectors": cfg.collector.num_workers, "sync": True,

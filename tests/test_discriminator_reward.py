@@ -220,6 +220,40 @@ class TestDiscriminatorReward:
         with pytest.raises(ValueError, match="chunk_size must be >= 1"):
             DiscriminatorReward(disc, chunk_size=0)
 
+    def test_row_ids_evaluate_each_distinct_row_once(self):
+        # 4 stored rows drawn 12 times: D sees 4 rows, every draw gets its row's reward
+        disc = Discriminator(3, 1, num_cells=(8,))
+        disc.net.obs_norm.update(torch.randn(50, 3))
+        stored = _transitions(4)
+        ids = torch.tensor([[2, 0, 2], [3, 3, 0], [1, 2, 2], [0, 0, 3]])
+        block = stored[ids]  # [4, 3]
+        block["row_id"] = ids
+        seen = []
+        hook = disc.net.register_forward_hook(lambda m, args, out: seen.append(args[0].shape[0]))
+        logit_key = disc.out_keys[0]
+        out = DiscriminatorReward(disc, row_id_key="row_id", keep_logit=True, chunk_size=3)(block.clone())
+        hook.remove()
+        assert sum(seen) == 4
+        expected = _softplus_logit(disc, stored)[ids]
+        torch.testing.assert_close(out["next", "reward"], expected)
+        torch.testing.assert_close(F.softplus(out[logit_key]), expected)
+        # the same rewards as evaluating every row
+        torch.testing.assert_close(out["next", "reward"], DiscriminatorReward(disc)(block.clone())["next", "reward"])
+
+    def test_row_id_key_absent_or_all_distinct_evaluates_every_row(self):
+        disc = Discriminator(3, 1, num_cells=(8,))
+        td = _transitions(5)
+        seen = []
+        hook = disc.net.register_forward_hook(lambda m, args, out: seen.append(args[0].shape[0]))
+        t = DiscriminatorReward(disc, row_id_key="row_id")
+        no_ids = t(td.clone())["next", "reward"]
+        td["row_id"] = torch.arange(5)
+        distinct = t(td.clone())["next", "reward"]
+        hook.remove()
+        assert seen == [5, 5]
+        torch.testing.assert_close(no_ids, _softplus_logit(disc, td))
+        torch.testing.assert_close(distinct, no_ids)
+
     def test_reward_keeps_discriminator_dtype_under_autocast(self):
         disc = Discriminator(3, 1, num_cells=(8,))
         td = _transitions(6)

@@ -123,6 +123,25 @@ class TestMixedReplayBuffer:
         torch.testing.assert_close(block["observation"], expected)
 
 
+    def test_row_ids_name_the_stored_row(self):
+        rb = MixedReplayBuffer(_TEACHER, _AGENT, row_id_key=("meta", "row"))
+        block = rb.sample(6, teacher_fraction=0.5, num_batches=40).reshape(-1)
+        ids, teacher = block["meta", "row"], block["is_teacher"]
+        assert ids.dtype == torch.int64 and "row" not in block.keys()
+        # teacher rows 2 * index, agent rows 2 * index + 1, and the id's row is the drawn row
+        assert torch.equal(ids % 2 == 0, teacher)
+        for source, buffer in ((0, _TEACHER), (1, _AGENT)):
+            rows = ids % 2 == source
+            torch.testing.assert_close(buffer.storage[ids[rows] // 2]["observation"], block["observation"][rows])
+        assert ids.unique().numel() <= 30 < ids.numel()  # 30 stored rows, 240 draws
+        assert "meta" not in MixedReplayBuffer(_TEACHER, _AGENT).sample(4, teacher_fraction=0.5).keys()
+
+    def test_row_ids_need_flat_storages(self):
+        teacher = TensorDictReplayBuffer(storage=LazyTensorStorage(16, ndim=2))
+        teacher.extend(transitions(8, TEACHER_MARK).reshape(2, 4))
+        with pytest.raises(ValueError, match="needs flat storages.*teacher buffer"):
+            MixedReplayBuffer(teacher, _AGENT, row_id_key="row_id").sample(4, teacher_fraction=0.5)
+
 if __name__ == "__main__":
     args, unknown = argparse.ArgumentParser().parse_known_args()
     pytest.main([__file__, "--capture", "no", "--exitfirst"] + unknown)

@@ -43,6 +43,14 @@ class MixedReplayBuffer:
         transform (Callable[[TensorDictBase], TensorDictBase], optional): applied to the
             mixed batch, e.g. a :class:`~torchrl_sail.DiscriminatorReward` that rewards
             both halves with the same discriminator. Defaults to ``None``.
+        row_id_key (NestedKey, optional): where to write each row's id, an int64 that
+            names the stored row it was drawn from: equal for every draw of that row
+            within one :meth:`sample` call, different between rows and between the two
+            buffers (``2 * index`` in the teacher buffer, ``2 * index + 1`` in the agent
+            buffer). A row-wise transform can then compute once per distinct row, e.g.
+            ``DiscriminatorReward(disc, row_id_key=...)`` when a block draws more rows than
+            the buffers hold. Needs flat storages (1-D sample indices). Defaults to
+            ``None`` (no id).
 
     Examples:
         >>> import torch
@@ -65,6 +73,10 @@ class MixedReplayBuffer:
         >>> block = rb.sample(5, teacher_fraction=0.4, num_batches=3)  # 3 batches at once
         >>> block.batch_size, block["is_teacher"].sum(-1).tolist()
         (torch.Size([3, 5]), [2, 2, 2])
+        >>> rb = MixedReplayBuffer(teacher, agent, keys=["observation"], row_id_key="row_id")
+        >>> block = rb.sample(10, teacher_fraction=0.5, num_batches=100)  # 1000 draws of 30 stored rows
+        >>> block["row_id"].unique().numel() <= 30
+        True
     """
 
     def __init__(
@@ -75,12 +87,14 @@ class MixedReplayBuffer:
         keys: Sequence[NestedKey] = TRANSITION_KEYS,
         tag_key: NestedKey = "is_teacher",
         transform: Callable[[TensorDictBase], TensorDictBase] | None = None,
+        row_id_key: NestedKey | None = None,
     ) -> None:
         self.teacher = teacher
         self.agent = agent
         self.keys = list(keys)
         self.tag_key = tag_key
         self.transform = transform
+        self.row_id_key = row_id_key
 
     def sample(self, batch_size: int, teacher_fraction: float, num_batches: int | None = None) -> TensorDictBase:
         """Draws a tagged ``[batch_size]`` batch, teacher rows first.
@@ -100,19 +114,35 @@ class MixedReplayBuffer:
         num_teacher = round(teacher_fraction * batch_size)
         shape = (batch_size,) if num_batches is None else (num_batches, batch_size)
         count = 1 if num_batches is None else num_batches
-        parts = [
-            buffer.sample(n * count).select(*self.keys).reshape(*shape[:-1], n)
-            for buffer, n in ((self.teacher, num_teacher), (self.agent, batch_size - num_teacher))
-            if n
-        ]
+        parts, row_ids = [], []
+        for source, (buffer, n) in enumerate(((self.teacher, num_teacher), (self.agent, batch_size - num_teacher))):
+            if not n:
+                continue
+            if self.row_id_key is None:
+                data = buffer.sample(n * count)
+            else:
+                data, info = buffer.sample(n * count, return_info=True)
+                row_ids.append(_row_ids(info["index"], source).reshape(*shape[:-1], n))
+            parts.append(data.select(*self.keys).reshape(*shape[:-1], n))
         out = torch.cat(parts, -1) if len(parts) == 2 else parts[0]
         tag = torch.zeros(shape, dtype=torch.bool, device=out.device)
         tag[..., :num_teacher] = True
         out.set(self.tag_key, tag)
+        if row_ids:
+            out.set(self.row_id_key, torch.cat(row_ids, -1) if len(row_ids) == 2 else row_ids[0])
         return out if self.transform is None else self.transform(out)
 
     def __repr__(self) -> str:
         return (
             f"{type(self).__name__}(teacher={type(self.teacher).__name__}, "
-            f"agent={type(self.agent).__name__}, keys={self.keys})"
+            f"agent={type(self.agent).__name__}, keys={self.keys}, row_id_key={self.row_id_key})"
         )
+
+
+def _row_ids(index, source: int) -> torch.Tensor:
+    """Ids of the rows sampled from one buffer (``source`` 0: teacher, 1: agent): ``2 * index + source``."""
+    if not (isinstance(index, torch.Tensor) and index.dim() == 1):
+        shapes = [tuple(i.shape) for i in index] if isinstance(index, (tuple, list)) else getattr(index, "shape", index)
+        raise ValueError(f"MixedReplayBuffer(row_id_key=...) needs flat storages (1-D sample indices); "
+                         f"the {('teacher', 'agent')[source]} buffer sampled indices of shape {shapes}.")
+    return 2 * index + source

@@ -48,6 +48,12 @@ def _mlp_program(mlp: nn.Module, params: TensorDictBase, what: str) -> list:
     return program
 
 
+# Activations applied in place to a layer's fresh output: the products' backward reads their
+# inputs, not their outputs, and these activations' backward reads their own output. Not
+# allocating a new [B, 400] activation per layer saves about 5% of a CPU step (measured).
+_IN_PLACE = {nn.ReLU: torch.relu_, nn.Tanh: torch.tanh_}
+
+
 def _run(program: list, x: torch.Tensor) -> torch.Tensor:
     """Evaluates an MLP program on ``x`` (``[B, in]``).
 
@@ -55,10 +61,11 @@ def _run(program: list, x: torch.Tensor) -> torch.Tensor:
     product for the whole ensemble, computed feature-major (``W @ h^T``) so that the weight
     gradients come out contiguous instead of as transposes that autograd would copy.
     """
-    stacked = False
+    stacked = fresh = False
     for layer in program:
         if isinstance(layer, tuple):
             weight, bias = layer
+            fresh = True
             if weight.dim() == 2:
                 x = F.linear(x, weight, bias)
                 continue
@@ -66,8 +73,11 @@ def _run(program: list, x: torch.Tensor) -> torch.Tensor:
                 x = x.mT.expand(weight.shape[0], *x.mT.shape)
                 stacked = True
             x = torch.bmm(weight, x) if bias is None else torch.baddbmm(bias.unsqueeze(-1), weight, x)
+        elif fresh and type(layer) in _IN_PLACE:
+            x = _IN_PLACE[type(layer)](x)
         else:
             x = layer(x)
+            fresh = False
     return x.mT if stacked else x
 
 
