@@ -27,7 +27,8 @@ from omegaconf import OmegaConf
 from torchrl._utils import timeit
 from torchrl.checkpoint import Checkpoint, GlobalRNGState
 
-from torchrl_sail import DiscriminatorReward, MixedReplayBuffer, TRANSITION_KEYS
+from bc import run_bc
+from torchrl_sail import AbsorbingStateTransform, MixedReplayBuffer, TRANSITION_KEYS
 from utils import (
     check_config,
     crossings,
@@ -43,9 +44,12 @@ from utils import (
     make_losses,
     make_optimizers,
     make_replay,
+    make_reward,
+    make_rnd,
     make_teacher,
     make_update,
     resume,
+    resume_mode,
     seed_everything,
     train_timing,
     write_summary,
@@ -59,14 +63,21 @@ def main(cfg):  # noqa: F821
         torch.set_num_threads(cfg.threads)
     run_dir = Path(HydraConfig.get().runtime.output_dir)
     checkpoint_path = run_dir / "checkpoint"
-    if checkpoint_path.exists() and not cfg.resume:
-        raise FileExistsError(f"{run_dir} already holds a run (checkpoint/). Continue it with resume=true, "
-                              f"or choose another folder with hydra.run.dir=...")
+    resuming = resume_mode(cfg, run_dir)
+    if resuming is None:  # resume=auto on a finished run (e.g. a rerun matrix)
+        print(f"{run_dir} holds a finished run: skipped (resume=auto).")
+        return
     seed_everything(cfg.seed)
+    if cfg.algo.learner == "bc":  # offline: no env frames, no TD3
+        return run_bc(cfg, run_dir, resuming)
 
     # --- env, teacher, buffers (everything is validated before training starts)
     env, eval_env = make_env(cfg, cfg.seed), make_env(cfg, cfg.seed + 10_000)
-    teacher, teacher_return, teacher_source = make_teacher(cfg, env)
+    # SAIL-RND: a curiosity bonus whose statistics the training env keeps (None for other methods)
+    rnd, rnd_loss = make_rnd(cfg, env)
+    # DAC: terminal transitions go into an absorbing state (the env appends its indicator)
+    absorbing = AbsorbingStateTransform() if cfg.algo.absorbing_state else None
+    teacher, teacher_return, teacher_source = make_teacher(cfg, env, absorbing)
     replay = make_replay(cfg.env.replay_size, cfg.device)
     # SAIL-OnPolicy trains D against the most recent transitions only.
     recent = make_replay(cfg.algo.recent_window, cfg.device) if cfg.algo.discriminator_agent_data == "recent" else replay
@@ -75,10 +86,11 @@ def main(cfg):  # noqa: F821
     actor, critic, exploration_policy = make_agent(cfg, env)
     discriminator = make_discriminator(cfg, env)
     loss, target_updater, alpha_scheduler, d_loss = make_losses(cfg, actor, critic, discriminator, env.action_spec)
-    optimizers = make_optimizers(cfg, loss, discriminator)
-    # TD3 batches get the imitation reward of the *current* D at sample time (td3_delayed: the env's),
-    # computed once per distinct stored row of a block (a block draws 256k rows).
-    reward = DiscriminatorReward(discriminator, row_id_key="row_id") if cfg.algo.imitation_reward else None
+    optimizers = make_optimizers(cfg, loss, discriminator, rnd)
+    # TD3 batches get the reward of the *current* D (and RND predictor) at sample time
+    # (reward.source=env: the env's alone), D once per distinct stored row of a block.
+    reward = make_reward(cfg, discriminator, rnd, row_id_key="row_id")
+    uses_discriminator = cfg.algo.reward.source != "env"
     sail_batches = MixedReplayBuffer(teacher, replay, transform=reward, row_id_key="row_id")
     d_batches = MixedReplayBuffer(teacher, recent)
 
@@ -90,8 +102,10 @@ def main(cfg):  # noqa: F821
                 **{f"optim_{name}": optimizer for name, optimizer in optimizers.items()}}
     if recent is not replay:
         stateful["recent"] = FilledRows(recent)
+    if rnd is not None:
+        stateful["rnd"] = rnd
     checkpoint = Checkpoint(**stateful)
-    if cfg.resume:
+    if resuming:
         resume(checkpoint, checkpoint_path, cfg, run)
         # The env restarts on a fresh episode: a trajectory cut by the stop is not offered.
         teacher.writer.clear_unfinished()
@@ -110,6 +124,14 @@ def main(cfg):  # noqa: F821
         optimizers["discriminator"].step()
         optimizers["discriminator"].zero_grad(set_to_none=True)
         return {f"d/{key}": value for key, value in out.items()}
+
+    def rnd_update(batch) -> dict:
+        rnd_loss.obs_rms = rnd.obs_rms  # the env's running statistics, created at its first step
+        out = rnd_loss(batch[~batch["is_teacher"]])  # the predictor learns the agent's states
+        out["loss_predictor"].backward()
+        optimizers["rnd"].step()
+        optimizers["rnd"].zero_grad(set_to_none=True)
+        return {"rnd/loss_predictor": out["loss_predictor"].detach()}
 
     def save(frames: int, gradient_steps: int) -> None:
         run.update(frames=frames, gradient_steps=gradient_steps, loggers=logger_states(loggers))
@@ -131,9 +153,12 @@ def main(cfg):  # noqa: F821
         before, frames = frames, frames + data.numel()
         with timeit("replay_extend"):
             flat = data.reshape(-1)
-            replay.extend(flat.select(*TRANSITION_KEYS))
+            stored = flat.select(*TRANSITION_KEYS)
+            if absorbing is not None:
+                stored = absorbing.add_absorbing_transitions(stored)
+            replay.extend(stored)
             if recent is not replay:
-                recent.extend(flat.select(*TRANSITION_KEYS))
+                recent.extend(stored)
         # Algorithm 1: every finished trajectory with r_e > C joins the teacher buffer.
         with timeit("teacher_extend"):
             if cfg.algo.adaptive:
@@ -147,6 +172,8 @@ def main(cfg):  # noqa: F821
             metrics["train/dense_return"] = flat["next", "episode_return"][done].mean()
             metrics["train/delayed_reward"] = flat["next", "reward"][done].mean()
             metrics["train/episode_length"] = flat["step_count"][done].float().mean() + 1
+        if rnd is not None:
+            metrics["train/intrinsic_reward"] = flat["next", "intrinsic_reward"].mean()
 
         # The authors' order at a shared frame: the TD3 block, then the D block. Neither the
         # buffers nor D change inside a block, so its batches are drawn (and rewarded by the
@@ -155,20 +182,22 @@ def main(cfg):  # noqa: F821
         if num_updates:
             with timeit("sample"), reduced_precision:  # the D reward too, with precision=bf16
                 block = sail_batches.sample(o.batch_size, teacher_fraction=alpha, num_batches=num_updates)
-            metrics["sail/d_reward_mean"] = block["next", "reward"].mean()
+            metrics["sail/d_reward_mean" if uses_discriminator else "sail/env_reward_mean"] = block["next", "reward"].mean()
             last = {}
             for batch in block.unbind(0):
                 gradient_steps += 1
                 with timeit("update"):
                     last.update(update(batch, update_actor=gradient_steps % o.policy_delay == 0))
             metrics.update({f"sail/{key}": value for key, value in last.items()})
-        num_d_steps = crossings(d.every_frames, warmup, before, frames) * d.steps if reward is not None else 0
+        num_d_steps = crossings(d.every_frames, warmup, before, frames) * d.steps if uses_discriminator else 0
         if num_d_steps:
             with timeit("sample"):
                 d_block = d_batches.sample(2 * d.batch_size, teacher_fraction=0.5, num_batches=num_d_steps)
             for batch in d_block.unbind(0):
                 with timeit("discriminator"):
                     metrics.update(discriminator_update(batch))
+                    if rnd is not None:
+                        metrics.update(rnd_update(batch))
         # Worker processes or Ray actors act with a copy of the policy.
         collector.update_policy_weights_()
 

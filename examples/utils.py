@@ -7,6 +7,7 @@ import math
 import os
 import random
 import resource
+import shutil
 from functools import partial
 from pathlib import Path
 
@@ -21,21 +22,24 @@ from torchrl.collectors import Collector
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.modules import MLP, AdditiveGaussianModule, TanhModule, ValueOperator
-from torchrl.objectives import SoftUpdate
+from torchrl.objectives import RNDLoss, SoftUpdate
 from torchrl.record.loggers import get_logger
 
 from torchrl_sail import (
+    AbsorbingStateTransform,
     AlphaScheduler,
     check_demonstration_dims,
     DelayedRewardTransform,
     Discriminator,
     DiscriminatorLoss,
+    DiscriminatorReward,
     FIFOTrajectoryWriter,
     load_demonstrations,
     make_sail_env,
     SAILLoss,
     TD3Update,
     TeacherReplayBuffer,
+    RNDReward,
     TopKTrajectoryWriter,
     TRANSITION_KEYS,
 )
@@ -64,6 +68,8 @@ def check_config(cfg: DictConfig) -> None:
         ("optim.discriminator.batch_size", d.batch_size, 1),
         ("env.replay_size", cfg.env.replay_size, 1),
         ("eval.episodes", cfg.eval.episodes, 1),
+        ("algo.bc.epochs", cfg.algo.bc.epochs, 1),
+        ("algo.bc.batch_size", cfg.algo.bc.batch_size, 1),
         ("collector.init_random_frames", c.init_random_frames, 0),
         ("optim.updates_per_train", o.updates_per_train, 0),
         ("optim.discriminator.steps", d.steps, 0),
@@ -75,11 +81,20 @@ def check_config(cfg: DictConfig) -> None:
     for key, value, ok, why in [
         ("optim.lr", o.lr, o.lr > 0, "must be > 0"),
         ("optim.discriminator.lr", d.lr, d.lr > 0, "must be > 0"),
+        ("algo.bc.lr", cfg.algo.bc.lr, cfg.algo.bc.lr > 0, "must be > 0"),
         ("optim.gamma", o.gamma, 0 < o.gamma <= 1, "must be in (0, 1]"),
         ("optim.tau", o.tau, 0 < o.tau <= 1, "must be in (0, 1]"),
         ("env.exploration_noise", cfg.env.exploration_noise, cfg.env.exploration_noise >= 0, "must be >= 0"),
         ("algo.discriminator_agent_data", cfg.algo.discriminator_agent_data,
          cfg.algo.discriminator_agent_data in ("replay", "recent"), "use replay | recent"),
+        ("algo.learner", cfg.algo.learner, cfg.algo.learner in ("td3", "bc"), "use td3 | bc"),
+        ("algo.reward.source", cfg.algo.reward.source, cfg.algo.reward.source in ("discriminator", "env", "shaped"),
+         "use discriminator | env | shaped"),
+        ("algo.reward.kind", cfg.algo.reward.kind, cfg.algo.reward.kind in ("gail", "airl"), "use gail | airl"),
+        ("algo.rnd", cfg.algo.rnd, cfg.algo.rnd is None or cfg.collector.num_workers == 1,
+         "the RND bonus keeps its statistics in the training env: use collector.num_workers=1"),
+        ("algo.absorbing_state", cfg.algo.absorbing_state, not (cfg.algo.absorbing_state and cfg.algo.adaptive),
+         "absorbing states need a fixed teacher (algo.adaptive=false): promotion reads unrewritten trajectories"),
         ("teacher.eviction", cfg.teacher.eviction, cfg.teacher.eviction in ("topk", "fifo"), "use topk | fifo"),
         ("optim.implementation", o.implementation, o.implementation in ("fused", "loss"), "use fused | loss"),
         ("optim.precision", o.precision, o.precision in ("fp32", "bf16"), "use fp32 | bf16"),
@@ -91,6 +106,7 @@ def check_config(cfg: DictConfig) -> None:
          f"direct runs one worker, but collector.num_workers={c.num_workers}"),
         ("collector.backend", c.backend, c.backend != "ray" or importlib.util.find_spec("ray") is not None,
          "the ray backend needs Ray: pip install ray"),
+        ("resume", cfg.resume, cfg.resume in (True, False, "auto"), "use true, false or auto"),
         ("device", cfg.device, cfg.device == "cpu" or torch.cuda.is_available(),
          "CUDA is not available on this machine; use device=cpu"),
     ]:
@@ -123,7 +139,8 @@ def crossings(every: int, start: int, before: int, now: int) -> int:
 
 # ----------------------------------------------------------------------------- env / data
 def make_env(cfg: DictConfig, seed: int):
-    env = make_sail_env(cfg.env.name, max_episode_steps=cfg.env.max_episode_steps, device=cfg.device)
+    env = make_sail_env(cfg.env.name, max_episode_steps=cfg.env.max_episode_steps,
+                        absorbing_state=cfg.algo.absorbing_state, device=cfg.device)
     env.set_seed(seed)
     return env
 
@@ -140,7 +157,7 @@ def make_collector(cfg: DictConfig, env, policy, *, frames: int):
         # Workers build their own env (seeded below) from the installed package, so remote
         # workers (Ray actors) need torchrl_sail installed but not this examples/ folder.
         env = partial(make_sail_env, cfg.env.name, max_episode_steps=cfg.env.max_episode_steps,
-                      device=cfg.device)
+                      absorbing_state=cfg.algo.absorbing_state, device=cfg.device)
     collector = Collector(
         env,
         policy,
@@ -156,8 +173,12 @@ def make_collector(cfg: DictConfig, env, policy, *, frames: int):
     return collector
 
 
-def make_teacher(cfg: DictConfig, env):
-    """The teacher buffer seeded with the demonstrations, the teacher's best dense return, its path."""
+def make_teacher(cfg: DictConfig, env, absorbing: AbsorbingStateTransform | None = None):
+    """The teacher buffer seeded with the demonstrations, the teacher's best dense return, its path.
+
+    With ``absorbing`` (DAC), the demonstrations get the indicator and the absorbing transitions
+    the agent's data gets.
+    """
     path = Path(cfg.teacher.path).expanduser() if cfg.teacher.path else TEACHERS_DIR / cfg.env.name
     if cfg.teacher.path is None and not path.exists():
         raise FileNotFoundError(
@@ -167,15 +188,18 @@ def make_teacher(cfg: DictConfig, env):
             f"`python examples/make_teacher.py env={cfg.env.name}`."
         )
     demos, meta = load_demonstrations(path, max_episode_steps=cfg.env.max_episode_steps)
+    # The buffer ranks trajectories by r_e = floor(0.1 R), the only reward the learner sees.
+    demos = DelayedRewardTransform().forward(demos).select(*TRANSITION_KEYS)
+    if absorbing is not None:
+        demos = absorbing(demos)
     check_demonstration_dims(demos, env=env, source=str(path))
     t = cfg.teacher
     if t.eviction == "fifo":  # the authors' transition ring
         writer = FIFOTrajectoryWriter(k=t.k, capacity=t.capacity)
-    else:  # the paper's K best trajectories
-        writer = TopKTrajectoryWriter(k=t.k, max_trajectory_length=cfg.env.max_episode_steps)
+    else:  # the paper's K best trajectories (+ 1 row: a terminated episode's absorbing transition)
+        writer = TopKTrajectoryWriter(k=t.k, max_trajectory_length=cfg.env.max_episode_steps + (absorbing is not None))
     buffer = TeacherReplayBuffer(writer, device=cfg.device)
-    # The buffer ranks trajectories by r_e = floor(0.1 R), the only reward the learner sees.
-    buffer.add_demonstrations(DelayedRewardTransform().forward(demos).select(*TRANSITION_KEYS))
+    buffer.add_demonstrations(demos)
     return buffer, float(max(meta["episode_returns"])), str(path)
 
 
@@ -244,14 +268,46 @@ def make_discriminator(cfg: DictConfig, env) -> Discriminator:
     ).to(cfg.device)
 
 
+def make_reward(cfg: DictConfig, discriminator: Discriminator, rnd: RNDReward | None = None, **kwargs):
+    """The sample-time reward of ``algo.reward``, then ``rnd``'s bonus if given (``None``: the env's reward)."""
+    r = cfg.algo.reward
+    reward = None
+    if r.source != "env":
+        reward = DiscriminatorReward(discriminator, kind=r.kind, coef=r.coef,
+                                     mode="add" if r.source == "shaped" else "replace", **kwargs)
+    if rnd is None or reward is None:
+        return reward or rnd
+
+    def reward_then_bonus(batch):
+        return rnd(reward(batch))
+
+    return reward_then_bonus
+
+
+def make_rnd(cfg: DictConfig, env) -> tuple[RNDReward | None, RNDLoss | None]:
+    """``algo.rnd``'s bonus, appended to the training ``env`` (it keeps the running statistics), and its loss."""
+    if cfg.algo.rnd is None:
+        return None, None
+    r, obs_dim = cfg.algo.rnd, env.observation_spec["observation"].shape[-1]
+
+    def net():
+        return MLP(in_features=obs_dim, out_features=r.features, num_cells=list(r.cells), device=cfg.device)
+
+    rnd = RNDReward(net(), net(), coef=r.coef)
+    env.append_transform(rnd)
+    rnd.train()  # append_transform leaves transforms in eval mode, where RND's statistics stay frozen
+    return rnd, RNDLoss(rnd.predictor_network, rnd.target_network)
+
+
 def make_losses(cfg: DictConfig, actor, critic, discriminator, action_spec):
     o, a = cfg.optim, cfg.algo.alpha
     # mixing="batch": alpha acts through the batch composition alone (the authors' code).
     loss = SAILLoss(actor, critic, action_spec=action_spec, alpha=a.initial, mixing="batch",
                     policy_noise=o.policy_noise, noise_clip=o.noise_clip, loss_function=o.loss_function)
     loss.make_value_estimator(gamma=o.gamma)
-    if o.truncation_is_terminal:
-        # The authors store done = 1 at time-limit truncation too: no bootstrap there.
+    if o.truncation_is_terminal and not cfg.algo.absorbing_state:
+        # The authors store done = 1 at time-limit truncation too: no bootstrap there. With
+        # absorbing states (DAC) only terminations end an episode, and they bootstrap through s_a.
         loss.set_keys(terminated="done")
     updater = SoftUpdate(loss, tau=o.tau)
     scheduler = AlphaScheduler(loss, mode=a.mode, initial=a.initial, final=a.final, anneal_frames=a.anneal_frames)
@@ -260,15 +316,18 @@ def make_losses(cfg: DictConfig, actor, critic, discriminator, action_spec):
     return loss, updater, scheduler, d_loss
 
 
-def make_optimizers(cfg: DictConfig, loss, discriminator) -> dict:
+def make_optimizers(cfg: DictConfig, loss, discriminator, rnd: RNDReward | None = None) -> dict:
     # fused Adam: one kernel for all parameters of a network (CPU and CUDA).
     adam = partial(torch.optim.Adam, fused=True)
-    return {
+    optimizers = {
         # convert_to_functional re-samples and stacks the twin Q params: optimise the loss's copy.
         "critic": adam(loss.qvalue_network_params.flatten_keys().values(), lr=cfg.optim.lr),
         "actor": adam(loss.actor_network_params.flatten_keys().values(), lr=cfg.optim.lr),
         "discriminator": adam(discriminator.parameters(), lr=cfg.optim.discriminator.lr),
     }
+    if rnd is not None:
+        optimizers["rnd"] = adam(rnd.predictor_network.parameters(), lr=cfg.algo.rnd.lr)
+    return optimizers
 
 
 def make_update(cfg: DictConfig, loss, optimizers: dict, target_updater) -> TD3Update:
@@ -291,6 +350,35 @@ def evaluate(env, actor, episodes: int, max_steps: int) -> float:
 
 
 # ----------------------------------------------------------------------------- run folder
+def resume_mode(cfg: DictConfig, run_dir: Path) -> bool | None:
+    """Whether this run continues the one in ``run_dir``: ``True``, ``False``, or ``None`` to skip it.
+
+    ``resume=false`` refuses a folder that holds a checkpoint (a run is never overwritten),
+    ``resume=true`` needs one. ``resume=auto`` (for matrices that must survive interruption)
+    skips a run whose ``summary.json`` shows its budget done (offline runs: done), continues one
+    with a checkpoint, and starts the rest afresh, first removing the logs of a run that stopped
+    before its first checkpoint (nothing can continue them, and a fresh run would append to them).
+    """
+    checkpoint, summary = run_dir / "checkpoint", run_dir / "summary.json"
+    if cfg.resume == "auto":
+        if summary.exists():
+            done = json.loads(summary.read_text())
+            if done.get("offline") or done.get("frames", 0) >= cfg.collector.total_frames:
+                return None
+            if not checkpoint.exists():
+                raise FileNotFoundError(
+                    f"{run_dir} holds a finished {done.get('frames')}-frame run but no checkpoint to extend it to "
+                    f"collector.total_frames={cfg.collector.total_frames}; choose another folder.")
+        if checkpoint.exists():
+            return True
+        shutil.rmtree(run_dir / "logs", ignore_errors=True)
+        return False
+    if checkpoint.exists() and not cfg.resume:
+        raise FileExistsError(f"{run_dir} already holds a run (checkpoint/). Continue it with resume=true "
+                              f"(or resume=auto), or choose another folder with hydra.run.dir=...")
+    return cfg.resume
+
+
 def resume(checkpoint, path: Path, cfg: DictConfig, run: dict) -> None:
     """Restores every component of ``checkpoint`` from ``path``, after checking that it is this run's."""
     if not (path / "manifest.json").exists():
@@ -391,12 +479,13 @@ def write_summary(run_dir: Path, cfg: DictConfig, *, teacher_return: float, alph
     if alpha_switch_frame is not None:
         ax.axvline(alpha_switch_frame, ls=":", c="red", label="alpha -> 0 (first promotion)")
     ax.set(xlabel="environment frames", ylabel="dense episode return",
-           title=f"SAIL ({cfg.algo.name}) on {cfg.env.name}, seed {cfg.seed}")
+           title=f"{cfg.algo.name} on {cfg.env.name}, seed {cfg.seed}")
     ax.legend(loc="best", fontsize=8)
     fig.tight_layout()
     fig.savefig(run_dir / "learning_curve.png", dpi=100)
     plt.close(fig)
     summary = {"env": cfg.env.name, "algo": cfg.algo.name, "seed": cfg.seed, "teacher_return": teacher_return,
+               "total_frames": 0 if results.get("offline") else cfg.collector.total_frames,
                "alpha_switched_at_frame": alpha_switch_frame, **results,
                "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,  # Linux: KiB
                "learning_curve": "learning_curve.png"}

@@ -170,6 +170,38 @@ class TestDiscriminatorReward:
             out["next", "reward"], -torch.log(1 - p).detach(), atol=1e-5, rtol=1e-5
         )
 
+    def test_kinds_coef_and_mode_against_hand_values(self):
+        # logit = 2 * obs - 1 * act + 0.5: obs 1, act 0.5 -> 2.0; obs -1, act 0 -> -1.5
+        disc = _linear_disc([2.0, -1.0], bias=0.5)
+        td = TensorDict(observation=torch.tensor([[1.0], [-1.0]]), action=torch.tensor([[0.5], [0.0]]),
+                        next=TensorDict(reward=torch.tensor([[10.0], [20.0]]), batch_size=[2]), batch_size=[2])
+        logit = torch.tensor([[2.0], [-1.5]])
+        gail = DiscriminatorReward(disc)(td.clone())["next", "reward"]
+        torch.testing.assert_close(gail, torch.log1p(torch.exp(logit)))  # -log(1 - sigmoid)
+        airl = DiscriminatorReward(disc, kind="airl")(td.clone())["next", "reward"]
+        p = torch.sigmoid(logit)
+        torch.testing.assert_close(airl, torch.log(p) - torch.log(1 - p))
+        shaped = DiscriminatorReward(disc, coef=0.1, mode="add")(td.clone())["next", "reward"]
+        torch.testing.assert_close(shaped, torch.tensor([[10.0], [20.0]]) + 0.1 * torch.log1p(torch.exp(logit)))
+        scaled = DiscriminatorReward(disc, kind="airl", coef=0.5)(td.clone())["next", "reward"]
+        torch.testing.assert_close(scaled, 0.5 * logit)
+
+    def test_add_mode_in_an_env_adds_to_the_env_reward(self):
+        disc = Discriminator(OBS_DIM, ACT_DIM, num_cells=(8,))
+        plain = ContinuousActionVecMockEnv()
+        plain.set_seed(0)
+        dense = plain.rollout(3)["next", "reward"]
+        env = TransformedEnv(ContinuousActionVecMockEnv(), DiscriminatorReward(disc, coef=2.0, mode="add"))
+        env.set_seed(0)
+        rollout = env.rollout(3)
+        bonus = 2.0 * F.softplus(disc.net(rollout["observation"], rollout["action"])).detach()
+        torch.testing.assert_close(rollout["next", "reward"], dense + bonus)
+
+    @pytest.mark.parametrize("kwargs, message", [({"kind": "wgan"}, "kind must be"), ({"mode": "mix"}, "mode must be")])
+    def test_bad_kind_or_mode(self, kwargs, message):
+        with pytest.raises(ValueError, match=message):
+            DiscriminatorReward(Discriminator(3, 1, num_cells=(4,)), **kwargs)
+
     def test_no_gradients(self):
         disc = Discriminator(3, 1, num_cells=(8,))
         td = _transitions(5)

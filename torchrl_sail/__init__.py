@@ -17,9 +17,11 @@ from torchrl_sail.data import (
     TRANSITION_KEYS,
 )
 from torchrl_sail.envs import (
+    AbsorbingStateTransform,
     DelayedRewardTransform,
     DiscriminatorReward,
     make_sail_env,
+    RNDReward,
     TimeFeature,
 )
 from torchrl_sail.modules import Discriminator, DiscriminatorNet, RunningObsNorm
@@ -28,6 +30,7 @@ from torchrl_sail.objectives import AlphaScheduler, DiscriminatorLoss, SAILLoss,
 __version__ = "0.1.0.dev0"
 
 __all__ = [
+    "AbsorbingStateTransform",
     "AlphaScheduler",
     "DelayedRewardTransform",
     "Demonstrations",
@@ -37,6 +40,7 @@ __all__ = [
     "DiscriminatorReward",
     "FIFOTrajectoryWriter",
     "MixedReplayBuffer",
+    "RNDReward",
     "RunningObsNorm",
     "SAILLoss",
     "TD3Update",

@@ -1,7 +1,10 @@
-"""Environment transforms: the delayed-reward setting, the time feature, the imitation reward, the SAIL env stack."""
+"""Environment transforms: the delayed-reward setting, the time feature, the imitation reward,
+DAC's absorbing state, a sample-time RND bonus, the SAIL env stack."""
+from torchrl_sail.envs.absorbing import AbsorbingStateTransform
 from torchrl_sail.envs.delayed_reward import DelayedRewardTransform
 from torchrl_sail.envs.discriminator_reward import DiscriminatorReward
 from torchrl_sail.envs.make import make_sail_env
+from torchrl_sail.envs.rnd_reward import RNDReward
 from torchrl_sail.envs.time_feature import TimeFeature
 
-__all__ = ["DelayedRewardTransform", "DiscriminatorReward", "TimeFeature", "make_sail_env"]
+__all__ = ["AbsorbingStateTransform", "DelayedRewardTransform", "DiscriminatorReward", "RNDReward", "TimeFeature", "make_sail_env"]

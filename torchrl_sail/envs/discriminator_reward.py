@@ -36,6 +36,11 @@ __all__ = ["DiscriminatorReward"]
 class DiscriminatorReward(Transform):
     """Writes the SAIL imitation reward ``-log(1 - D(s, a))`` computed by a discriminator.
 
+    The same transform gives the baselines' variants of it: ``kind="airl"`` is the
+    ``log D - log(1 - D)`` reward of AIRL and DAC, and ``mode="add"`` with a ``coef`` adds
+    the reward to the one already in the batch as shaping (POfD: the environment reward
+    plus ``coef`` times the discriminator reward).
+
     With ``ℓ = D_logit(s, a)`` the reward is ``r' = -log(1 - σ(ℓ)) = softplus(ℓ)``,
     computed as ``softplus`` which is exact and numerically stable. The authors compute
     ``-log(1 - σ(ℓ) + 1e-8)``, which is capped at ``-log(1e-8) ≈ 18.42`` and slightly
@@ -88,6 +93,14 @@ class DiscriminatorReward(Transform):
         chunk_size (int, optional): inputs with more rows (e.g. a ``[num_batches, B]``
             block from :meth:`MixedReplayBuffer.sample`) are evaluated this many rows at a
             time. Defaults to ``1024``.
+        kind (str, optional): ``"gail"``: ``-log(1 - D) = softplus(ℓ)`` (SAIL, GAIL; always
+            positive, a survival bonus), or ``"airl"``: ``log D - log(1 - D) = ℓ`` (AIRL, and
+            DAC's reward; positive where D says teacher, negative where it says agent).
+            Defaults to ``"gail"``.
+        coef (float, optional): the reward is multiplied by this. Defaults to ``1.0``.
+        mode (str, optional): ``"replace"`` writes ``coef * r`` to ``out_key``; ``"add"``
+            adds it to the value already there (e.g. ``r_env + coef * r_D`` as POfD
+            shapes the environment reward). Defaults to ``"replace"``.
         row_id_key (NestedKey, optional): buffer path: when the input holds this entry
             (e.g. written by ``MixedReplayBuffer(row_id_key=...)``), D runs once per
             distinct id and every row with that id gets its reward. Rows with equal ids
@@ -121,6 +134,11 @@ class DiscriminatorReward(Transform):
         (True, False)
         >>> bool((rb.storage[:]["next", "reward"] == 0).all())  # storage untouched
         True
+        >>> shaping = DiscriminatorReward(disc, kind="airl", coef=0.1, mode="add")
+        >>> data["next", "reward"] = torch.ones(10, 1)
+        >>> logit = disc(data.clone())["d_logit"]
+        >>> torch.allclose(shaping(data.clone())["next", "reward"], 1 + 0.1 * logit)
+        True
     """
 
     def __init__(
@@ -130,14 +148,24 @@ class DiscriminatorReward(Transform):
         out_key: NestedKey = "reward",
         keep_logit: bool = False,
         chunk_size: int = 1024,
+        kind: str = "gail",
+        coef: float = 1.0,
+        mode: str = "replace",
         row_id_key: NestedKey | None = None,
     ) -> None:
         if chunk_size < 1:
             raise ValueError(f"chunk_size must be >= 1, got {chunk_size}.")
+        if kind not in ("gail", "airl"):
+            raise ValueError(f"kind must be 'gail' (-log(1 - D)) or 'airl' (log D - log(1 - D)), got {kind!r}.")
+        if mode not in ("replace", "add"):
+            raise ValueError(f"mode must be 'replace' or 'add', got {mode!r}.")
         super().__init__(in_keys=list(discriminator.in_keys), out_keys=[out_key])
         self.discriminator = discriminator
         self.keep_logit = keep_logit
         self.chunk_size = chunk_size
+        self.kind = kind
+        self.coef = coef
+        self.mode = mode
         self.row_id_key = row_id_key
 
     @property
@@ -173,6 +201,14 @@ class DiscriminatorReward(Transform):
                 return self._evaluate(obs[first], act[first])[inverse].reshape(*lead, 1)
         return self._evaluate(obs, act).reshape(*lead, 1)
 
+    def _reward(self, logit: torch.Tensor, current: TensorDictBase, key: NestedKey) -> torch.Tensor:
+        reward = F.softplus(logit) if self.kind == "gail" else logit
+        if self.coef != 1.0:
+            reward = self.coef * reward
+        if self.mode == "add":
+            reward = current.get(key) + reward
+        return reward
+
     def _evaluate(self, obs: torch.Tensor, act: torch.Tensor) -> torch.Tensor:
         """D's logit of ``[rows, dim]`` inputs, in D's dtype (also under autocast)."""
         net = self.discriminator.module
@@ -197,7 +233,8 @@ class DiscriminatorReward(Transform):
                 observation and action keys at the root.
         """
         logit = self._logit(tensordict)
-        tensordict.set(unravel_key(("next", self.out_key)), F.softplus(logit))
+        key = unravel_key(("next", self.out_key))
+        tensordict.set(key, self._reward(logit, tensordict, key))
         if self.keep_logit:
             tensordict.set(self.discriminator.out_keys[0], logit)
         return tensordict
@@ -207,7 +244,7 @@ class DiscriminatorReward(Transform):
         self, tensordict: TensorDictBase, next_tensordict: TensorDictBase
     ) -> TensorDictBase:
         logit = self._logit(tensordict)
-        next_tensordict.set(self.out_key, F.softplus(logit))
+        next_tensordict.set(self.out_key, self._reward(logit, next_tensordict, self.out_key))
         return next_tensordict
 
     def transform_reward_spec(self, reward_spec: TensorSpec) -> TensorSpec:

@@ -11,6 +11,7 @@ import difflib
 import gymnasium as gym
 from torchrl.envs import Compose, DoubleToFloat, GymEnv, InitTracker, StepCounter, TransformedEnv
 
+from torchrl_sail.envs.absorbing import AbsorbingStateTransform
 from torchrl_sail.envs.delayed_reward import DelayedRewardTransform
 from torchrl_sail.envs.time_feature import TimeFeature
 
@@ -36,6 +37,7 @@ def make_sail_env(
     delayed_reward: bool = True,
     reward_scale: float = 0.1,
     rounding: str = "floor",
+    absorbing_state: bool = False,
     device: str = "cpu",
 ) -> TransformedEnv:
     """Builds ``GymEnv(env_name)`` with the SAIL transforms.
@@ -60,6 +62,9 @@ def make_sail_env(
             dense reward (used to train teachers). Defaults to ``True``.
         reward_scale (float, optional): ``scale`` of the delayed reward. Defaults to ``0.1``.
         rounding (str, optional): ``"floor"`` or ``"none"``. Defaults to ``"floor"``.
+        absorbing_state (bool, optional): append DAC's absorbing-state indicator to the
+            observation (:class:`~torchrl_sail.AbsorbingStateTransform`, last in the stack).
+            Defaults to ``False``.
         device (str, optional): device of the env outputs. Defaults to ``"cpu"``.
 
     Raises:
@@ -78,4 +83,6 @@ def make_sail_env(
         transforms.append(TimeFeature(max_steps=max_episode_steps))
     if delayed_reward:
         transforms.append(DelayedRewardTransform(reward_scale, rounding=rounding))
+    if absorbing_state:
+        transforms.append(AbsorbingStateTransform())
     return TransformedEnv(GymEnv(env_name, device=device), Compose(*transforms))

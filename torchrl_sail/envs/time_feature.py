@@ -14,8 +14,10 @@ from collections.abc import Sequence
 import torch
 from tensordict import TensorDictBase, unravel_key
 from tensordict.utils import NestedKey
-from torchrl.data.tensor_specs import Bounded, TensorSpec, Unbounded
+from torchrl.data.tensor_specs import TensorSpec
 from torchrl.envs.transforms import Transform
+
+from torchrl_sail.envs._specs import append_unit_column
 
 __all__ = ["TimeFeature"]
 
@@ -137,26 +139,7 @@ class TimeFeature(Transform):
 
     def transform_observation_spec(self, observation_spec: TensorSpec) -> TensorSpec:
         for in_key, out_key in zip(self.in_keys, self.out_keys):
-            spec = observation_spec[in_key]
-            shape = (*spec.shape[:-1], spec.shape[-1] + 1)
-            if isinstance(spec, Bounded):
-                low, high = spec.space.low, spec.space.high
-                col = torch.zeros((*low.shape[:-1], 1), dtype=low.dtype, device=low.device)
-                spec = Bounded(
-                    low=torch.cat([low, col], -1),
-                    high=torch.cat([high, col + 1], -1),
-                    shape=shape,
-                    dtype=spec.dtype,
-                    device=spec.device,
-                )
-            elif isinstance(spec, Unbounded):
-                spec = Unbounded(shape=shape, dtype=spec.dtype, device=spec.device)
-            else:
-                raise TypeError(
-                    f"TimeFeature extends Bounded and Unbounded observation specs only; "
-                    f"{in_key!r} has a {type(spec).__name__} spec."
-                )
-            observation_spec[out_key] = spec
+            observation_spec[out_key] = append_unit_column(observation_spec[in_key], owner="TimeFeature", key=in_key)
         return observation_spec
 
     def __repr__(self) -> str:

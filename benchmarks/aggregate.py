@@ -1,0 +1,515 @@
+"""Aggregates ``sail_td3.py`` run folders into the paper's results table and learning curves.
+
+    python benchmarks/aggregate.py benchmarks/runs/hopper50k --out benchmarks/runs/hopper50k/report \
+        [--expect-methods sail td3_delayed] [--expect-seeds 0 1 2]
+
+A run folder is any folder holding ``config.yaml`` (hidden folders such as Hydra's ``.hydra/``
+are skipped). Runs are grouped by (env, teacher, method): the teacher is the folder name under a
+``run_matrix.py`` folder (the nearest ``matrix.json`` above the run), else the teacher file's
+name (``shipped`` for the env's default teacher). Writes to ``--out``:
+
+- ``results.md`` and ``results.csv``: per group, the final deterministic evaluation return
+  (mean, sample std, a 95% BCa bootstrap CI from scipy), its ratio to the teacher's return, and
+  the frames each seed needed to first exceed the teacher (median over the seeds that did);
+- ``curves_<env>_<teacher>.png``: eval return against frames, one colour per method (mean over
+  seeds, min-max band), the teacher's return dashed, offline methods as dotted lines.
+
+Only finished runs count. Missing runs (expected by ``--expect-*`` or ``matrix.json`` and
+absent), unfinished ones (no ``summary.json``, or fewer frames than ``collector.total_frames``)
+and duplicates are listed in a "Missing or unfinished runs" section, never averaged in.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import os
+import re
+import statistics
+from collections import defaultdict
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+# Display order; methods not listed here come after, alphabetically.
+METHOD_ORDER = ("sail", "sail_no_lfd", "sail_no_adapt", "sail_onpolicy", "sail_sac", "sail_rnd",
+                "td3_delayed", "dac", "ddpgfd", "pofd", "gail", "bc")
+CI_RESAMPLES = 10_000
+CI_SEED = 0
+NA = "n/a"
+# Config keys that legitimately differ between the seeds of one group.
+PER_RUN_KEYS = ("seed", "resume", "teacher.path", "device", "threads", "logger.")
+
+
+@dataclass
+class Run:
+    """One run folder, read."""
+
+    folder: Path
+    env: str
+    method: str
+    seed: int
+    teacher: str
+    config: dict
+    summary: dict | None
+    curve: list[tuple[int, float]]  # (frames, deterministic eval return)
+    problem: str | None = None  # why the run does not count; None: a finished run
+
+    @property
+    def offline(self) -> bool:
+        return bool(self.summary and self.summary.get("offline"))
+
+    @property
+    def final_return(self) -> float | None:
+        """The summary's final eval return, else the last eval row."""
+        value = (self.summary or {}).get("final_eval_return")
+        return float(value) if value is not None else (self.curve[-1][1] if self.curve else None)
+
+    @property
+    def teacher_return(self) -> float | None:
+        value = (self.summary or {}).get("teacher_return")
+        return None if value is None else float(value)
+
+    def passed_teacher_at(self) -> int | None:
+        """Frames at the first eval above the teacher's return (the summary's, else from the curve)."""
+        if self.summary and "passed_teacher_at_frame" in self.summary:
+            return self.summary["passed_teacher_at_frame"]
+        teacher = self.teacher_return
+        return next((frames for frames, value in self.curve if teacher is not None and value > teacher), None)
+
+
+@dataclass
+class Group:
+    """The finished runs of one (env, teacher, method), with their statistics."""
+
+    env: str
+    teacher: str
+    method: str
+    runs: list[Run] = field(default_factory=list)
+
+    @property
+    def values(self) -> list[float]:
+        return [run.final_return for run in self.runs]
+
+    @property
+    def teacher_return(self) -> float | None:
+        returns = [run.teacher_return for run in self.runs if run.teacher_return is not None]
+        return statistics.median(returns) if returns else None
+
+    @property
+    def offline(self) -> bool:
+        return all(run.offline for run in self.runs)
+
+    def stats(self) -> dict:
+        """Mean, sample std (ddof=1), 95% CI, ratio to the teacher, frames to pass it."""
+        values = self.values
+        mean = statistics.fmean(values)
+        std = statistics.stdev(values) if len(values) > 1 else None
+        low, high = bootstrap_ci(values)
+        passed = [run.passed_teacher_at() for run in self.runs]
+        passed = [frames for frames in passed if frames is not None]
+        teacher = self.teacher_return
+        return {
+            "n_seeds": len(values), "seeds": sorted(run.seed for run in self.runs),
+            "mean": mean, "std": std, "ci95_low": low, "ci95_high": high,
+            "vs_teacher": mean / teacher if teacher else None,
+            "frames_to_teacher_median": statistics.median(passed) if passed else None,
+            "seeds_past_teacher": f"{len(passed)}/{len(values)}",
+        }
+
+
+def bootstrap_ci(values: list[float], confidence: float = 0.95) -> tuple[float | None, float | None]:
+    """95% BCa bootstrap CI of the mean (scipy, fixed seed): (None, None) for fewer than 2 values.
+
+    Equal values give (value, value): BCa is undefined there, and so is any spread.
+    """
+    if len(values) < 2:
+        return None, None
+    if min(values) == max(values):
+        return values[0], values[0]
+    from scipy.stats import bootstrap  # imported here so that reading runs needs no scipy
+
+    def interval(method: str) -> tuple[float, float]:
+        result = bootstrap((np.asarray(values, dtype=float),), np.mean, confidence_level=confidence,
+                           n_resamples=CI_RESAMPLES, method=method, rng=np.random.default_rng(CI_SEED))
+        return float(result.confidence_interval.low), float(result.confidence_interval.high)
+
+    low, high = interval("BCa")
+    if not (math.isfinite(low) and math.isfinite(high)):  # BCa's acceleration can be undefined
+        low, high = interval("percentile")
+    return low, high
+
+
+# --- reading run folders
+
+
+def find_run_folders(roots: list[Path]) -> list[Path]:
+    """Every folder under ``roots`` holding a ``config.yaml``, not looking inside hidden folders or runs.
+
+    Raises:
+        FileNotFoundError: a root that does not exist or holds no run folder.
+    """
+    found = []
+    for root in roots:
+        if not root.is_dir():
+            raise FileNotFoundError(f"{root} is not a folder")
+        before = len(found)
+        for folder, dirs, files in os.walk(root):
+            if "config.yaml" in files:
+                found.append(Path(folder))
+                dirs.clear()  # checkpoint/ and logs/ of a run hold no runs
+            else:
+                dirs[:] = sorted(d for d in dirs if not d.startswith("."))
+        if len(found) == before:
+            raise FileNotFoundError(f"{root} holds no run folder (a folder with config.yaml)")
+    return sorted(set(found))
+
+
+def find_matrix(folder: Path) -> Path | None:
+    """The nearest folder above ``folder`` holding ``run_matrix.py``'s ``matrix.json``."""
+    for parent in folder.resolve().parents:
+        if (parent / "matrix.json").is_file():
+            return parent
+    return None
+
+
+def teacher_label(folder: Path, config: dict) -> str:
+    """The teacher folder under a matrix root, else the teacher file's name (``shipped``: the default)."""
+    matrix = find_matrix(folder)
+    if matrix is not None:
+        return folder.resolve().relative_to(matrix).parts[0]
+    path = (config.get("teacher") or {}).get("path")
+    return "shipped" if not path else Path(path).name.removesuffix(".npz").removesuffix(".pt")
+
+
+def read_scalar(run_dir: Path, tag: str) -> list[tuple[int, float]]:
+    """(frames, value) rows of a TorchRL CSV scalar, sorted by frames, the last row of a frame kept."""
+    path = run_dir / "logs" / "scalars" / f"{tag}.csv"
+    if not path.exists():
+        return []
+    rows = {}
+    for number, line in enumerate(path.read_text().splitlines(), 1):
+        if not line.strip():
+            continue
+        try:
+            frames, value = line.split(",")
+            rows[int(float(frames))] = float(value)
+        except ValueError as err:
+            raise ValueError(f"{path}, line {number}: expected 'frames,value', got {line!r}") from err
+    return sorted(rows.items())
+
+
+def load_run(folder: Path) -> Run:
+    """Reads a run folder; ``problem`` says why it does not count, if it does not.
+
+    Raises:
+        ValueError: a ``config.yaml`` that is not a ``sail_td3.py`` config.
+    """
+    try:
+        config = yaml.safe_load((folder / "config.yaml").read_text())
+        env, method, seed = config["env"]["name"], config["algo"]["name"], int(config["seed"])
+    except (yaml.YAMLError, KeyError, TypeError, ValueError) as err:
+        raise ValueError(f"{folder / 'config.yaml'} is not a sail_td3.py run config "
+                         f"(env.name, algo.name, seed): {err}") from err
+    summary, problem = None, None
+    if (folder / "summary.json").exists():
+        try:
+            summary = json.loads((folder / "summary.json").read_text())
+        except json.JSONDecodeError as err:
+            problem = f"unreadable summary.json ({err})"
+    run = Run(folder, env, method, seed, teacher_label(folder, config), config, summary,
+              read_scalar(folder, "eval/return"))
+    run.problem = problem or unfinished_reason(run)
+    if run.problem is None and run.final_return is None:
+        run.problem = "finished, but with no eval return (eval.every_frames > total frames?)"
+    return run
+
+
+def unfinished_reason(run: Run) -> str | None:
+    """Why ``run`` is unfinished, or None when it is finished (an offline run once it has a summary)."""
+    total = (run.config.get("collector") or {}).get("total_frames")
+    last_eval = f"last eval at {run.curve[-1][0]} frames" if run.curve else "no eval yet"
+    if run.summary is None:
+        checkpoint = ", has checkpoint/" if (run.folder / "checkpoint").is_dir() else ""
+        return f"unfinished: no summary.json ({last_eval}{checkpoint})"
+    if run.offline:
+        return None
+    frames = run.summary.get("frames")
+    if frames is None or (total is not None and frames < total):
+        return f"unfinished: {frames} of {total} frames"
+    return None
+
+
+# --- grouping
+
+
+def group_runs(runs: list[Run]) -> tuple[dict[tuple[str, str, str], Group], list[tuple[str, str]]]:
+    """Finished runs by (env, teacher, method), and (folder, why) of the runs left out."""
+    groups, left_out, seen = {}, [], {}
+    for run in sorted(runs, key=lambda r: str(r.folder)):
+        if run.problem is not None:
+            left_out.append((str(run.folder), run.problem))
+            continue
+        key = (run.env, run.teacher, run.method)
+        if (key, run.seed) in seen:  # e.g. the same run copied twice: counting both would weigh it double
+            left_out.append((str(run.folder), f"duplicate of {seen[key, run.seed]} (same env, teacher, method, "
+                                              f"seed {run.seed}), not counted"))
+            continue
+        seen[key, run.seed] = run.folder
+        groups.setdefault(key, Group(*key)).runs.append(run)
+    return groups, left_out
+
+
+def read_matrix(root: Path) -> dict:
+    """``run_matrix.py``'s record of the sweeps asked for under ``root``."""
+    path = root / "matrix.json"
+    try:
+        return json.loads(path.read_text())
+    except json.JSONDecodeError as err:
+        raise ValueError(f"{path} is not valid JSON ({err}); rerun run_matrix.py or delete it") from err
+
+
+def within(a: Path, b: Path) -> bool:
+    """Whether one of the folders ``a`` and ``b`` holds the other (or they are the same)."""
+    a, b = a.resolve(), b.resolve()
+    return a == b or a in b.parents or b in a.parents
+
+
+def missing_runs(runs: list[Run], roots: list[Path], expect_methods: list[str] = (),
+                 expect_seeds: list[int] = ()) -> list[tuple[str, str]]:
+    """(where, why) of each expected run without a run folder.
+
+    Under a ``run_matrix.py`` folder, every teacher x env x method x seed of the sweeps in its
+    ``matrix.json`` is expected (those of teachers whose folder is within ``roots``); elsewhere,
+    per (env, teacher) seen, every method and seed seen there. ``expect_*`` replace the methods
+    and seeds expected.
+    """
+    present = defaultdict(set)  # matrix root (None: none) -> {(env, teacher, method, seed)}
+    for run in runs:
+        present[find_matrix(run.folder)].add((run.env, run.teacher, run.method, run.seed))
+    missing = []
+    for root, cells in present.items():
+        expected = set()
+        if root is None:
+            for env, teacher in {(env, teacher) for env, teacher, _, _ in cells}:
+                pair = [(method, seed) for e, t, method, seed in cells if (e, t) == (env, teacher)]
+                methods = expect_methods or {method for method, _ in pair}
+                seeds = expect_seeds or {seed for _, seed in pair}
+                expected |= {(env, teacher, method, seed) for method in methods for seed in seeds}
+        else:
+            for sweep in read_matrix(root).get("sweeps", []):
+                if any(within(root / sweep["teacher"], given) for given in roots):
+                    expected |= {(env, sweep["teacher"], method, seed) for env in sweep["envs"]
+                                 for method in expect_methods or sweep["methods"]
+                                 for seed in expect_seeds or sweep["seeds"]}
+        rank = {method: index for index, method in enumerate(sort_methods(method for _, _, method, _ in expected))}
+        for env, teacher, method, seed in sorted(expected - cells, key=lambda c: (c[0], c[1], rank[c[2]], c[3])):
+            where = (str(root / teacher / env / method / f"seed{seed}") if root
+                     else f"env {env}, teacher {teacher}, method {method}, seed {seed}")
+            missing.append((where, "missing: no run folder"))
+    return missing
+
+
+def config_differences(group: Group) -> dict[str, list]:
+    """Config keys whose values differ between the runs of ``group`` (besides per-run keys like seed)."""
+    flat = [flatten(run.config) for run in group.runs]
+    keys = sorted(set().union(*flat))
+    differing = {}
+    for key in keys:
+        if key.startswith(PER_RUN_KEYS):
+            continue
+        values = {json.dumps(config.get(key), sort_keys=True) for config in flat}
+        if len(values) > 1:
+            differing[key] = sorted(values)
+    return differing
+
+
+def flatten(config: dict, prefix: str = "") -> dict:
+    out = {}
+    for key, value in config.items():
+        if isinstance(value, dict):
+            out.update(flatten(value, f"{prefix}{key}."))
+        else:
+            out[f"{prefix}{key}"] = value
+    return out
+
+
+def sort_methods(methods) -> list[str]:
+    """The display order: ``METHOD_ORDER`` first, then the rest alphabetically."""
+    rank = {name: index for index, name in enumerate(METHOD_ORDER)}
+    return sorted(set(methods), key=lambda name: (rank.get(name, len(rank)), name))
+
+
+def ordered_pairs(groups: dict) -> list[tuple[str, str]]:
+    """(env, teacher) pairs: envs alphabetically, then teachers by return (Table 2 reads weakest first)."""
+    pairs = {(env, teacher): group.teacher_return for (env, teacher, _), group in groups.items()}
+    return sorted(pairs, key=lambda pair: (pair[0], pairs[pair] is None, pairs[pair] or 0.0, pair[1]))
+
+
+# --- outputs
+
+
+def pair_groups(groups: dict, env: str, teacher: str) -> list[Group]:
+    """The groups of one (env, teacher), methods in display order."""
+    return [groups[env, teacher, method]
+            for method in sort_methods(method for (e, t, method) in groups if (e, t) == (env, teacher))]
+
+
+def rows(groups: dict) -> list[dict]:
+    """One row per group, in display order."""
+    out = []
+    for env, teacher in ordered_pairs(groups):
+        for group in pair_groups(groups, env, teacher):
+            out.append({"env": env, "teacher": teacher, "teacher_return": group.teacher_return,
+                        "method": group.method, "offline": group.offline, **group.stats()})
+    return out
+
+
+CSV_COLUMNS = ("env", "teacher", "teacher_return", "method", "n_seeds", "seeds", "final_eval_mean",
+               "final_eval_std", "ci95_low", "ci95_high", "vs_teacher", "frames_to_teacher_median",
+               "seeds_past_teacher", "offline")
+
+
+def write_csv(path: Path, table: list[dict]) -> None:
+    """``results.csv``: full precision, ``n/a`` where a value is undefined (pandas reads it as NaN)."""
+    with path.open("w", newline="") as file:
+        writer = csv.writer(file)
+        writer.writerow(CSV_COLUMNS)
+        for row in table:
+            values = {**row, "final_eval_mean": row["mean"], "final_eval_std": row["std"],
+                      "seeds": " ".join(map(str, row["seeds"]))}
+            writer.writerow([NA if values[column] is None else values[column] for column in CSV_COLUMNS])
+
+
+def fmt(value: float | None, digits: int = 1) -> str:
+    return NA if value is None else f"{value:.{digits}f}"
+
+
+def markdown(table: list[dict], left_out: list[tuple[str, str]], notes: list[str], curves: list[Path]) -> str:
+    """``results.md``: the table, the runs left out, notes on the groups, the curve files."""
+    best, methods = {}, defaultdict(int)  # per (env, teacher): the best mean, the number of methods
+    for row in table:
+        key = (row["env"], row["teacher"])
+        best[key], methods[key] = max(best.get(key, -math.inf), row["mean"]), methods[key] + 1
+    lines = [
+        "Final deterministic evaluation return (the last eval of each run) over seeds: mean ± sample std "
+        f"(ddof=1; n/a for one seed), 95% BCa bootstrap CI of the mean (scipy, {CI_RESAMPLES} resamples, "
+        f"seed {CI_SEED}; n/a for one seed), mean / teacher return, and the frames to the first eval above "
+        "the teacher's return (median over the seeds that got there). Best mean per env and teacher in bold.",
+        "",
+        "| env | teacher (return) | method | seeds | final eval return | 95% CI | vs teacher | frames to pass teacher |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for row in table:
+        mean = fmt(row["mean"])
+        if row["mean"] == best[row["env"], row["teacher"]] and methods[row["env"], row["teacher"]] > 1:
+            mean = f"**{mean}**"
+        std = "" if row["std"] is None else f" ± {fmt(row['std'])}"
+        ci = NA if row["ci95_low"] is None else f"[{fmt(row['ci95_low'])}, {fmt(row['ci95_high'])}]"
+        passed = ("offline" if row["offline"] else
+                  f"{fmt(row['frames_to_teacher_median'], 0)} ({row['seeds_past_teacher']} seeds)")
+        lines.append(f"| {row['env']} | {row['teacher']} ({fmt(row['teacher_return'])}) | {row['method']} | "
+                     f"{row['n_seeds']} | {mean}{std} | {ci} | {fmt(row['vs_teacher'], 2)} | {passed} |")
+    lines += ["", "## Missing or unfinished runs", ""]
+    lines += [f"- `{where}`: {why}" for where, why in left_out] or ["None."]
+    if notes:
+        lines += ["", "## Notes", "", *[f"- {note}" for note in notes]]
+    if curves:
+        lines += ["", "## Learning curves", "", *[f"- [{path.name}]({path.name})" for path in curves]]
+    return "\n".join(lines) + "\n"
+
+
+def aligned_curves(runs: list[Run]) -> tuple[np.ndarray, np.ndarray]:
+    """(frames, returns[seed, frame]) on the eval frames every seed has.
+
+    Seeds evaluated at different frames (another ``eval.every_frames``, or a resumed run that
+    re-evaluated elsewhere) are compared only where they all were: the intersection.
+    """
+    common = sorted(set.intersection(*(set(frames for frames, _ in run.curve) for run in runs)))
+    values = np.array([[dict(run.curve)[frames] for frames in common] for run in runs], dtype=float)
+    return np.array(common, dtype=float), values.reshape(len(runs), len(common))
+
+
+def plot_curves(path: Path, env: str, teacher: str, groups: list[Group]) -> None:
+    """Figure 2 style: mean eval return over seeds with a min-max band per method, the teacher dashed."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    colours = plt.get_cmap("tab20" if len(groups) > 10 else "tab10")
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for index, group in enumerate(groups):
+        colour, n = colours(index), len(group.runs)
+        if group.offline:
+            ax.axhline(statistics.fmean(group.values), ls=":", c=colour, label=f"{group.method} (offline, n={n})")
+            continue
+        frames, values = aligned_curves(group.runs)
+        if not len(frames):
+            continue
+        ax.plot(frames, values.mean(axis=0), c=colour, label=f"{group.method} (n={n})")
+        if n > 1:
+            ax.fill_between(frames, values.min(axis=0), values.max(axis=0), color=colour, alpha=0.2, lw=0)
+    teacher_return = groups[0].teacher_return if groups else None
+    if teacher_return is not None:
+        ax.axhline(teacher_return, ls="--", c="gray", label=f"teacher ({teacher_return:.0f})")
+    ax.set(xlabel="environment frames", ylabel="eval return (deterministic)")
+    ax.set_title(f"{env}, teacher {teacher}\nmean over seeds, band: min to max", fontsize=10)
+    ax.legend(loc="best", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def safe_name(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.+-]+", "_", text)
+
+
+def aggregate(roots: list[Path], out: Path, expect_methods: list[str] = (), expect_seeds: list[int] = ()) -> str:
+    """Reads the runs under ``roots``, writes the table, CSV and curves to ``out``; returns the Markdown."""
+    runs = [load_run(folder) for folder in find_run_folders(roots)]
+    groups, left_out = group_runs(runs)
+    left_out = missing_runs(runs, roots, list(expect_methods), list(expect_seeds)) + left_out
+    notes = []
+    for group in groups.values():
+        returns = {run.teacher_return for run in group.runs}
+        if len(returns) > 1:
+            notes.append(f"{group.env} / {group.teacher} / {group.method}: the seeds' teacher returns differ "
+                         f"({sorted(r for r in returns if r is not None)}); the table shows their median")
+        for key, values in config_differences(group).items():
+            notes.append(f"{group.env} / {group.teacher} / {group.method}: the seeds differ in {key} "
+                         f"({', '.join(values)}); they are averaged together")
+    out.mkdir(parents=True, exist_ok=True)
+    curves = []
+    for env, teacher in ordered_pairs(groups):
+        curves.append(out / f"curves_{safe_name(env)}_{safe_name(teacher)}.png")
+        plot_curves(curves[-1], env, teacher, pair_groups(groups, env, teacher))
+    table = rows(groups)
+    write_csv(out / "results.csv", table)
+    text = markdown(table, left_out, notes, curves)
+    (out / "results.md").write_text(text)
+    return text
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("roots", nargs="+", type=Path, help="folders holding run folders (searched recursively)")
+    parser.add_argument("--out", type=Path, required=True, help="where results.md, results.csv and the PNGs go")
+    parser.add_argument("--expect-methods", nargs="+", default=[], help="list these methods as missing where absent")
+    parser.add_argument("--expect-seeds", nargs="+", type=int, default=[], help="list these seeds as missing where absent")
+    return parser.parse_args(argv)
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = parse_args(argv)
+    try:
+        print(aggregate(args.roots, args.out, args.expect_methods, args.expect_seeds), end="")
+    except (FileNotFoundError, ValueError) as err:
+        raise SystemExit(f"aggregate.py: {err}") from err
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,64 @@
+"""Behaviour cloning on the teacher demonstrations, the ``algo=bc`` baseline of ``sail_td3.py``.
+
+The actor (the same network as TD3's) regresses the teacher's actions with TorchRL's
+``BCLoss`` (MSE), offline: no env frames are collected. It is then evaluated like every
+other method, and the run folder holds the same files (``summary.json`` with
+``"offline": true`` and ``frames: 0``, ``eval/return`` logged at frame 0, a checkpoint).
+"""
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import torch
+import tqdm
+from omegaconf import OmegaConf
+from torchrl.checkpoint import Checkpoint, GlobalRNGState
+from torchrl.objectives import BCLoss
+
+from utils import evaluate, log_metrics, logger_states, make_agent, make_env, make_loggers, make_teacher, resume, \
+    write_summary
+
+
+def run_bc(cfg, run_dir: Path, resuming: bool) -> None:
+    """Trains ``ceil(epochs * teacher transitions / batch_size)`` BC steps, then evaluates and saves."""
+    env = make_env(cfg, cfg.seed + 10_000)  # evaluation only
+    teacher, teacher_return, teacher_source = make_teacher(cfg, env)
+    actor, _, _ = make_agent(cfg, env)
+    loss = BCLoss(actor, loss_function="l2")
+    optimizer = torch.optim.Adam(loss.actor_network_params.flatten_keys().values(), lr=cfg.algo.bc.lr)
+    steps = math.ceil(cfg.algo.bc.epochs * len(teacher) / cfg.algo.bc.batch_size)
+
+    run = {"frames": 0, "gradient_steps": 0, "evals": [], "loggers": {},
+           "identity": {"env": cfg.env.name, "algo": cfg.algo.name, "seed": cfg.seed}}
+    checkpoint = Checkpoint(actor=actor, optim_actor=optimizer, rng=GlobalRNGState(), run=run)
+    if resuming:  # the checkpoint is written once training is done: nothing is left to train
+        resume(checkpoint, run_dir / "checkpoint", cfg, run)
+    else:
+        OmegaConf.save(cfg, run_dir / "config.yaml", resolve=True)
+    loggers = make_loggers(cfg, run_dir, run["loggers"])
+
+    start = time.time()
+    for step in tqdm.trange(run["gradient_steps"], steps, unit="steps", desc="BC"):
+        out = loss(teacher.sample(cfg.algo.bc.batch_size))
+        out["loss_bc"].backward()
+        optimizer.step()
+        optimizer.zero_grad(set_to_none=True)
+        if (step + 1) % 10 == 0 or step + 1 == steps:
+            log_metrics(loggers, {"bc/loss": out["loss_bc"]}, step + 1)  # x axis: BC steps
+    train_seconds = time.time() - start
+    if run["gradient_steps"] < steps:
+        run["gradient_steps"] = steps
+        run["evals"] = [(0, evaluate(env, actor, cfg.eval.episodes, cfg.env.max_episode_steps))]
+        log_metrics(loggers, {"eval/return": run["evals"][0][1]}, 0)
+        run["loggers"] = logger_states(loggers)
+        checkpoint.save(run_dir / "checkpoint")
+
+    final = run["evals"][0][1]
+    write_summary(
+        run_dir, cfg, teacher_return=teacher_return, alpha_switch_frame=None, teacher_source=teacher_source,
+        offline=True, frames=0, gradient_steps=run["gradient_steps"], final_eval_return=final,
+        best_eval_return=final, passed_teacher_at_frame=0 if final > teacher_return else None,
+        train_seconds=train_seconds,
+    )

@@ -1,0 +1,96 @@
+"""Tests for AbsorbingStateTransform (envs/absorbing.py): DAC's absorbing state."""
+from __future__ import annotations
+
+import argparse
+
+import pytest
+import torch
+from tensordict import TensorDict
+from torchrl.envs.utils import check_env_specs
+
+from torchrl_sail import AbsorbingStateTransform, make_sail_env, SAILLoss
+
+
+def _transitions(terminated, truncated):
+    """Flat transitions with 1-d observations ``t`` -> ``t + 1``, action ``10 + t``, reward ``100 + t``."""
+    n = len(terminated)
+    terminated = torch.tensor(terminated).unsqueeze(-1)
+    truncated = torch.tensor(truncated).unsqueeze(-1)
+    t = torch.arange(n, dtype=torch.float32).unsqueeze(-1)
+    return TensorDict({
+        "observation": t, "action": 10 + t, "step_count": t.long(),
+        "next": {"observation": t + 1, "reward": 100 + t, "terminated": terminated, "truncated": truncated,
+                 "done": terminated | truncated},
+    }, batch_size=[n])
+
+
+class TestAbsorbingStateTransform:
+    def test_rows_against_hand_layout(self):
+        # rows 1 and 2 terminate (two short episodes), row 4 is a time-limit truncation
+        data = _transitions([False, True, True, False, False], [False, False, False, False, True])
+        before = data.clone()
+        out = AbsorbingStateTransform()(data)
+        torch.testing.assert_close(data, before)  # the input is untouched
+        a = [0.0, 1.0]  # s_a
+        assert out["observation"].tolist() == [[0, 0], [1, 0], a, [2, 0], a, [3, 0], [4, 0]]
+        assert out["next", "observation"].tolist() == [[1, 0], a, a, a, a, [4, 0], [5, 0]]
+        assert out["action"].squeeze(-1).tolist() == [10, 11, 0, 12, 0, 13, 14]
+        assert out["next", "reward"].squeeze(-1).tolist() == [100, 101, 0, 102, 0, 103, 104]
+        assert not out["next", "terminated"].any()  # every target bootstraps (through s_a)
+        assert out["next", "done"].squeeze(-1).tolist() == [False, False, True, False, True, False, True]
+        assert out["next", "truncated"].squeeze(-1).tolist() == [False] * 6 + [True]
+        # other entries are copied from the terminal row
+        assert out["step_count"].squeeze(-1).tolist() == [0, 1, 1, 2, 2, 3, 4]
+
+    def test_no_termination_leaves_transitions_alone(self):
+        data = _transitions([False, False], [False, True])
+        t = AbsorbingStateTransform()
+        widened = t(data)
+        assert widened.shape == (2,) and widened["observation"][:, -1].eq(0).all()
+        assert t.add_absorbing_transitions(widened) is widened
+
+    def test_env_appends_indicator_and_spec(self):
+        env = make_sail_env("Hopper-v4", absorbing_state=True)
+        check_env_specs(env)
+        spec = env.observation_spec["observation"]
+        assert spec.shape == (13,)  # Hopper's spec is Unbounded; a Bounded one gets [0, 1] (test_time_feature)
+        env.set_seed(0)
+        rollout = env.rollout(200)  # a random Hopper falls within 200 steps
+        assert rollout["observation"][:, -1].eq(0).all()
+        assert rollout["next", "terminated"][-1].item()
+        stored = env.transform[-1].add_absorbing_transitions(rollout.reshape(-1))
+        assert stored.shape[0] == rollout.shape[0] + 1
+        assert stored["next", "observation"][-2:].tolist() == [[0.0] * 12 + [1.0]] * 2
+
+    def test_loss_bootstraps_through_the_absorbing_state(self):
+        # TD(0) with terminated=False at the terminal and absorbing rows: y = r + gamma * Q'(s_a, pi'(s_a))
+        from torchrl.modules import MLP, TanhModule, ValueOperator
+        from tensordict.nn import TensorDictModule, TensorDictSequential
+        from torchrl.data import Bounded as B
+        from torchrl.objectives import SoftUpdate
+
+        spec = B(-1.0, 1.0, shape=(1,))
+        actor = TensorDictSequential(TensorDictModule(MLP(in_features=2, out_features=1, num_cells=[4]),
+                                                      ["observation"], ["param"]),
+                                     TanhModule(in_keys=["param"], out_keys=["action"], spec=spec))
+        critic = ValueOperator(MLP(in_features=3, out_features=1, num_cells=[4]), in_keys=["action", "observation"])
+        loss = SAILLoss(actor, critic, action_spec=spec, policy_noise=0.0, noise_clip=0.0)
+        loss.make_value_estimator(gamma=0.9)
+        SoftUpdate(loss, tau=0.1)  # targets as a run has them (and no missing-updater warning)
+        out = AbsorbingStateTransform()(_transitions([True], [False]))
+        _, meta = loss.value_loss(out)
+        s_a = torch.tensor([[0.0, 1.0]])
+        with torch.no_grad(), loss.target_actor_network_params.to_module(loss.actor_network):
+            a_next = loss.actor_network(TensorDict(observation=s_a, batch_size=[1]))["action"]
+        q_next = []
+        for i in range(2):
+            with torch.no_grad(), loss.target_qvalue_network_params[i].to_module(loss.qvalue_network):
+                q_next.append(loss.qvalue_network(TensorDict(observation=s_a, action=a_next, batch_size=[1]))
+                              ["state_action_value"])
+        expected = out["next", "reward"] + 0.9 * torch.minimum(*q_next)
+        torch.testing.assert_close(meta["target_value"].reshape(-1, 1), expected.expand(2, 1))
+
+
+if __name__ == "__main__":
+    args, unknown = argparse.ArgumentParser().parse_known_args()
+    pytest.main([__file__, "--capture", "no", "--exitfirst"] + unknown)

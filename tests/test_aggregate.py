@@ -1,0 +1,278 @@
+"""``benchmarks/aggregate.py`` on synthetic run folders, and the commands ``run_matrix.py`` and
+``make_teachers.py`` build (no training)."""
+from __future__ import annotations
+
+import csv
+import importlib.util
+import json
+import shlex
+import statistics
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+
+
+def load_script(name: str):
+    spec = importlib.util.spec_from_file_location(f"benchmarks_{name}", BENCHMARKS / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up there
+    spec.loader.exec_module(module)
+    return module
+
+
+aggregate = load_script("aggregate")
+run_matrix = load_script("run_matrix")
+make_teachers = load_script("make_teachers")
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+def write_run(folder: Path, *, algo: str = "sail", seed: int = 0, env: str = "Hopper-v4",
+              evals: list[tuple[int, float]] = ((1000, 10.0), (2000, 50.0), (3000, 100.0)),
+              teacher_return: float = 150.0, teacher_path: str | None = "/data/paper.npz",
+              total_frames: int = 3000, frames: int | None = 3000, finished: bool = True,
+              offline: bool = False, **config_extra) -> Path:
+    """A run folder as ``sail_td3.py`` writes it: config.yaml, the eval CSV, summary.json if finished."""
+    folder.mkdir(parents=True)
+    config = {"env": {"name": env}, "algo": {"name": algo}, "seed": seed, "teacher": {"path": teacher_path},
+              "collector": {"total_frames": total_frames}, **config_extra}
+    (folder / "config.yaml").write_text(yaml.safe_dump(config))
+    scalars = folder / "logs" / "scalars" / "eval"
+    scalars.mkdir(parents=True)
+    (scalars / "return.csv").write_text("".join(f"{f},{v}\n" for f, v in evals))
+    if finished:
+        passed = next((f for f, v in evals if v > teacher_return), None)
+        summary = {"env": env, "algo": algo, "seed": seed, "teacher_return": teacher_return,
+                   "teacher_source": teacher_path, "frames": frames,
+                   "final_eval_return": evals[-1][1] if evals else None,
+                   "passed_teacher_at_frame": passed, **({"offline": True} if offline else {})}
+        (folder / "summary.json").write_text(json.dumps(summary))
+    return folder
+
+
+def read_csv(path: Path) -> list[dict]:
+    with path.open() as file:
+        return list(csv.DictReader(file))
+
+
+def run_aggregate(roots, out, **kwargs) -> tuple[str, dict]:
+    text = aggregate.aggregate([Path(root) for root in roots], out, **kwargs)
+    return text, {(row["env"], row["teacher"], row["method"]): row for row in read_csv(out / "results.csv")}
+
+
+def test_mean_std_ci_and_frames_to_teacher(tmp_path):
+    finals = [100.0, 200.0, 400.0]
+    curves = [[(1000, 160.0), (2000, 10.0), (3000, finals[0])],  # above the teacher (150) at 1000
+              [(1000, 10.0), (2000, 10.0), (3000, finals[1])],  # at 3000
+              [(1000, 10.0), (2000, 10.0), (3000, finals[2])]]  # at 3000
+    for seed, curve in enumerate(curves):
+        write_run(tmp_path / "runs" / f"seed{seed}", seed=seed, evals=curve)
+    text, rows = run_aggregate([tmp_path / "runs"], tmp_path / "out")
+    row = rows["Hopper-v4", "paper", "sail"]
+    mean, std = statistics.fmean(finals), statistics.stdev(finals)  # 233.33, 152.75 (ddof=1)
+    assert float(row["final_eval_mean"]) == pytest.approx(mean)
+    assert float(row["final_eval_std"]) == pytest.approx(std)
+    assert float(row["teacher_return"]) == 150.0 and float(row["vs_teacher"]) == pytest.approx(mean / 150.0)
+    low, high = float(row["ci95_low"]), float(row["ci95_high"])
+    assert min(finals) <= low < mean < high <= max(finals)
+    assert aggregate.bootstrap_ci(finals) == aggregate.bootstrap_ci(finals) == (low, high)  # fixed seed
+    assert row["n_seeds"] == "3" and row["seeds"] == "0 1 2"
+    assert float(row["frames_to_teacher_median"]) == 3000.0 and row["seeds_past_teacher"] == "3/3"
+    assert "233.3 ± 152.8" in text and "3000 (3/3 seeds)" in text
+    assert "## Missing or unfinished runs\n\nNone." in text
+
+
+def test_frames_to_teacher_from_the_curve_when_the_summary_lacks_it(tmp_path):
+    write_run(tmp_path / "a", evals=[(1000, 10.0), (2000, 151.0), (3000, 100.0)])
+    summary = json.loads((tmp_path / "a" / "summary.json").read_text())
+    del summary["passed_teacher_at_frame"]
+    (tmp_path / "a" / "summary.json").write_text(json.dumps(summary))
+    write_run(tmp_path / "b", seed=1, evals=[(1000, 10.0), (2000, 20.0), (3000, 150.0)])  # equal: not above
+    _, rows = run_aggregate([tmp_path], tmp_path / "out")
+    row = rows["Hopper-v4", "paper", "sail"]
+    assert float(row["frames_to_teacher_median"]) == 2000.0 and row["seeds_past_teacher"] == "1/2"
+
+
+def test_missing_and_half_finished_runs_are_listed_not_averaged(tmp_path):
+    runs = tmp_path / "runs"
+    write_run(runs / "seed0", seed=0, evals=[(1000, 10.0), (2000, 20.0), (3000, 100.0)])
+    write_run(runs / "seed1", seed=1, evals=[(1000, 10.0), (2000, 20.0), (3000, 300.0)])
+    # No summary.json: stopped after its 2000-frame eval, with a checkpoint.
+    write_run(runs / "seed2", seed=2, evals=[(1000, 10.0), (2000, 9999.0)], finished=False)
+    (runs / "seed2" / "checkpoint").mkdir()
+    # A summary, but fewer frames than collector.total_frames (e.g. a run extended later).
+    write_run(runs / "seed4", seed=4, evals=[(1000, 9999.0)], frames=1000)
+    text, rows = run_aggregate([runs], tmp_path / "out", expect_seeds=[0, 1, 2, 3, 4])
+    row = rows["Hopper-v4", "paper", "sail"]
+    assert row["n_seeds"] == "2" and row["seeds"] == "0 1" and float(row["final_eval_mean"]) == 200.0
+    missing = text.split("## Missing or unfinished runs")[1]
+    assert f"`{runs / 'seed2'}`: unfinished: no summary.json (last eval at 2000 frames, has checkpoint/)" in missing
+    assert f"`{runs / 'seed4'}`: unfinished: 1000 of 3000 frames" in missing
+    assert "`env Hopper-v4, teacher paper, method sail, seed 3`: missing: no run folder" in missing
+    assert "9999" not in text.split("## Missing")[0]
+
+
+def test_expected_method_without_any_run_is_listed(tmp_path):
+    write_run(tmp_path / "runs" / "sail0")
+    text, _ = run_aggregate([tmp_path / "runs"], tmp_path / "out", expect_methods=["sail", "gail"])
+    assert "method gail, seed 0`: missing: no run folder" in text
+    assert "method sail, seed 0`" not in text
+
+
+def test_one_seed_has_no_std_or_ci_and_equal_values_a_point_ci(tmp_path):
+    write_run(tmp_path / "one" / "seed0")
+    for seed in (0, 1):
+        write_run(tmp_path / "equal" / f"seed{seed}", algo="td3_delayed", seed=seed)
+    text, rows = run_aggregate([tmp_path / "one", tmp_path / "equal"], tmp_path / "out")
+    one = rows["Hopper-v4", "paper", "sail"]
+    assert (one["final_eval_std"], one["ci95_low"], one["ci95_high"]) == ("n/a", "n/a", "n/a")
+    equal = rows["Hopper-v4", "paper", "td3_delayed"]
+    assert float(equal["final_eval_std"]) == 0.0
+    assert float(equal["ci95_low"]) == float(equal["ci95_high"]) == 100.0
+    assert "| sail | 1 | **100.0** | n/a |" in text  # no "± std" for one seed
+
+
+def test_offline_method_counts_with_zero_frames(tmp_path):
+    write_run(tmp_path / "sail0")
+    write_run(tmp_path / "bc0", algo="bc", evals=[(0, 120.0)], frames=0, offline=True)
+    text, rows = run_aggregate([tmp_path], tmp_path / "out")
+    bc = rows["Hopper-v4", "paper", "bc"]
+    assert bc["offline"] == "True" and float(bc["final_eval_mean"]) == 120.0
+    assert "| bc | 1 | **120.0** | n/a | 0.80 | offline |" in text
+    assert list(rows) == [("Hopper-v4", "paper", "sail"), ("Hopper-v4", "paper", "bc")]  # display order
+
+
+def test_outputs_written_one_png_per_env_and_teacher(tmp_path):
+    for seed in (0, 1):
+        write_run(tmp_path / f"hop{seed}", seed=seed)
+        write_run(tmp_path / f"hop_weak{seed}", seed=seed, teacher_path="/t/weak.pt", teacher_return=50.0)
+        write_run(tmp_path / f"walk{seed}", seed=seed, env="Walker2d-v4", teacher_path=None,
+                  evals=[(1000, 1.0), (2000 + seed * 500, 2.0), (3000, 3.0)])  # different eval frames
+        write_run(tmp_path / f"unknown{seed}", seed=seed, algo="zzz_new")
+    out = tmp_path / "out"
+    text, rows = run_aggregate([tmp_path], out)
+    assert (out / "results.md").read_text() == text
+    pngs = sorted(path.name for path in out.glob("*.png"))
+    assert pngs == ["curves_Hopper-v4_paper.png", "curves_Hopper-v4_weak.png", "curves_Walker2d-v4_shipped.png"]
+    assert all((out / name).read_bytes().startswith(PNG_MAGIC) for name in pngs)
+    # Teachers by return (weakest first, Table 2), unknown methods after the known ones.
+    assert list(rows) == [("Hopper-v4", "weak", "sail"), ("Hopper-v4", "paper", "sail"),
+                          ("Hopper-v4", "paper", "zzz_new"), ("Walker2d-v4", "shipped", "sail")]
+    assert list(read_csv(out / "results.csv")[0]) == list(aggregate.CSV_COLUMNS)
+
+
+def test_curves_align_on_common_frames(tmp_path):
+    runs = [aggregate.load_run(write_run(tmp_path / f"s{seed}", seed=seed, evals=evals))
+            for seed, evals in enumerate([[(1000, 1.0), (2000, 2.0), (3000, 3.0)], [(1000, 5.0), (3000, 7.0)]])]
+    frames, values = aggregate.aligned_curves(runs)
+    assert frames.tolist() == [1000, 3000] and values.tolist() == [[1.0, 3.0], [5.0, 7.0]]
+
+
+def test_duplicate_run_counted_once_and_config_differences_noted(tmp_path):
+    write_run(tmp_path / "a" / "seed0", evals=[(3000, 100.0)])
+    write_run(tmp_path / "b" / "seed0", evals=[(3000, 300.0)])
+    write_run(tmp_path / "c" / "seed1", seed=1, evals=[(3000, 200.0)], optim={"precision": "bf16"})
+    text, rows = run_aggregate([tmp_path], tmp_path / "out")
+    assert rows["Hopper-v4", "paper", "sail"]["n_seeds"] == "2"
+    assert f"`{tmp_path / 'b' / 'seed0'}`: duplicate of {tmp_path / 'a' / 'seed0'}" in text
+    assert "the seeds differ in optim.precision" in text
+
+
+def test_matrix_layout_labels_runs_and_lists_missing_cells(tmp_path):
+    out = tmp_path / "matrix"
+    teachers = [run_matrix.Teacher("paper", tmp_path / "p.npz"), run_matrix.Teacher("shipped", None)]
+    run_matrix.record_matrix(out, teachers, ["sail", "td3_delayed"], ["Hopper-v4"], [0])
+    write_run(out / "paper" / "Hopper-v4" / "sail" / "seed0", teacher_path=str(tmp_path / "p.npz"))
+    text, rows = run_aggregate([out], tmp_path / "report")
+    assert list(rows) == [("Hopper-v4", "paper", "sail")]
+    for missing in (out / "paper" / "Hopper-v4" / "td3_delayed" / "seed0",
+                    out / "shipped" / "Hopper-v4" / "sail" / "seed0",
+                    out / "shipped" / "Hopper-v4" / "td3_delayed" / "seed0"):
+        assert f"`{missing}`: missing: no run folder" in text
+    # Aggregating one teacher's folder expects that teacher's runs only.
+    text, _ = run_aggregate([out / "paper"], tmp_path / "report_paper")
+    assert "shipped" not in text.split("## Missing")[1]
+    # Another env with its own teacher file (a second call): its cells only are expected.
+    run_matrix.record_matrix(out, [run_matrix.Teacher("walker", tmp_path / "w.npz")], ["dac"], ["Walker2d-v4"], [1])
+    run_matrix.record_matrix(out, teachers[:1], ["sail", "td3_delayed"], ["Hopper-v4"], [0])  # a rerun: no change
+    assert len(json.loads((out / "matrix.json").read_text())["sweeps"]) == 3
+    write_run(out / "walker" / "Walker2d-v4" / "dac" / "seed1", env="Walker2d-v4", algo="dac", seed=1)
+    text, rows = run_aggregate([out], tmp_path / "report2")
+    assert ("Walker2d-v4", "walker", "dac") in rows
+    missing = text.split("## Missing or unfinished runs")[1]
+    assert missing.count("missing: no run folder") == 3 and "walker/Hopper-v4" not in missing
+    with pytest.raises(ValueError, match="already uses the teacher label 'paper'"):
+        run_matrix.record_matrix(out, [run_matrix.Teacher("paper", tmp_path / "other.npz")], ["sail"], ["Hopper-v4"], [0])
+
+
+def test_hidden_folders_skipped_and_bad_inputs_named(tmp_path):
+    run = write_run(tmp_path / "runs" / "seed0")
+    (run / ".hydra").mkdir()
+    (run.parent / ".hydra").mkdir()
+    (run.parent / ".hydra" / "config.yaml").write_text("not: a run")
+    assert aggregate.find_run_folders([tmp_path / "runs"]) == [run]
+    with pytest.raises(FileNotFoundError, match="nowhere is not a folder"):
+        aggregate.find_run_folders([tmp_path / "nowhere"])
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(FileNotFoundError, match="empty holds no run folder"):
+        aggregate.find_run_folders([tmp_path / "empty"])
+    (tmp_path / "bad").mkdir()
+    (tmp_path / "bad" / "config.yaml").write_text("foo: 1\n")
+    with pytest.raises(ValueError, match=r"bad/config.yaml is not a sail_td3.py run config"):
+        aggregate.load_run(tmp_path / "bad")
+
+
+def test_run_matrix_commands_for_a_file_teacher_and_the_shipped_one(tmp_path, capsys):
+    teacher_file = tmp_path / "teacher, v1.npz"  # a comma would start a Hydra sweep unless quoted
+    teacher_file.touch()
+    assert run_matrix.main(["--out", str(tmp_path / "m"), "--methods", "sail", "td3_delayed", "--envs", "Hopper-v4",
+                            "--seeds", "0", "1", "--teacher", f"paper={teacher_file}", "--teacher", "shipped",
+                            "--dry-run", "--", "collector.total_frames=50000"]) == 0
+    paper, shipped = [shlex.split(line)[2:] for line in capsys.readouterr().out.splitlines()]
+    assert paper[:9] == ["-m", "algo=sail,td3_delayed", "env=Hopper-v4", "seed=0,1", "hydra/launcher=joblib",
+                         "hydra.launcher.n_jobs=2", "threads=1", "resume=auto", "logger.backends=[csv]"]
+    assert f"hydra.sweep.dir={tmp_path / 'm' / 'paper'}" in paper
+    assert "hydra.sweep.subdir=${env.name}/${algo.name}/seed${seed}" in paper  # left to Hydra
+    assert f"teacher.path='{teacher_file}'" in paper  # quoted for Hydra
+    assert paper[-1] == "collector.total_frames=50000"  # the user's overrides last
+    assert not any(arg.startswith("teacher.path") for arg in shipped)
+    assert f"hydra.sweep.dir={tmp_path / 'm' / 'shipped'}" in shipped
+    assert not (tmp_path / "m").exists()  # a dry run writes nothing
+
+    command = run_matrix.multirun_command(run_matrix.Teacher("shipped", None), out=tmp_path, methods=["sail"],
+                                          envs=["Hopper-v4"], seeds=[0], launcher="submitit_slurm", jobs=8)
+    assert "hydra/launcher=submitit_slurm" in command and "hydra.launcher.array_parallelism=8" in command
+    assert "hydra.launcher.n_jobs=8" not in command
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--teacher", "pa/per=x.npz"], "must be a plain folder name"),
+    (["--teacher", "paper=/no/such/file.npz"], "does not exist"),
+    (["--teacher", "a", "--methods", "nope"], "unknown algo 'nope'"),
+    (["--teacher", "a", "--teacher", "a"], "labels must differ"),
+    (["--teacher", "a=README.md", "--envs", "Hopper-v4", "Walker2d-v4"], "a teacher file belongs to one env"),
+])
+def test_run_matrix_refuses_bad_arguments(argv, message, capsys):
+    base = {"--out": ["/tmp/x"], "--methods": ["sail"], "--envs": ["Hopper-v4"], "--seeds": ["0"]}
+    options = {key: value for key, value in base.items() if key not in argv}
+    full = [item for key, values in options.items() for item in (key, *values)] + argv + ["--dry-run"]
+    with pytest.raises(SystemExit):
+        run_matrix.parse_args(full)
+    assert message in capsys.readouterr().err
+
+
+def test_make_teachers_commands_and_labels(tmp_path, capsys):
+    assert make_teachers.main(["--env", "Hopper-v4", "--budgets", "30000", "10000", "--max-return", "1000",
+                               "--out", str(tmp_path), "--dry-run"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].endswith(f"env=Hopper-v4 frames=10000 seed=0 threads=1 out={tmp_path}/Hopper-v4_10000 "
+                             f"hydra.run.dir={tmp_path}/logs/Hopper-v4_10000 max_return=1000.0")
+    assert lines[-1] == (f"run_matrix.py arguments: --teacher td3_10k={tmp_path}/Hopper-v4_10000 "
+                         f"--teacher td3_30k={tmp_path}/Hopper-v4_30000")
+    with pytest.raises(SystemExit):
+        make_teachers.parse_args(["--env", "Hopper-v4", "--budgets", "1000"])
+    assert "below eval_every_frames=5000" in capsys.readouterr().err
