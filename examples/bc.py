@@ -13,12 +13,11 @@ from pathlib import Path
 
 import torch
 import tqdm
-from omegaconf import OmegaConf
 from torchrl.checkpoint import Checkpoint, GlobalRNGState
 from torchrl.objectives import BCLoss
 
-from utils import evaluate, log_metrics, logger_states, make_agent, make_env, make_loggers, make_teacher, resume, \
-    write_summary
+from utils import evaluate, log_metrics, logger_states, make_agent, make_env, make_loggers, make_teacher, new_run, \
+    start_or_resume, write_summary
 
 
 def run_bc(cfg, run_dir: Path, resuming: bool) -> None:
@@ -30,13 +29,11 @@ def run_bc(cfg, run_dir: Path, resuming: bool) -> None:
     optimizer = torch.optim.Adam(loss.actor_network_params.flatten_keys().values(), lr=cfg.algo.bc.lr)
     steps = math.ceil(cfg.algo.bc.epochs * len(teacher) / cfg.algo.bc.batch_size)
 
-    run = {"frames": 0, "gradient_steps": 0, "evals": [], "loggers": {},
-           "identity": {"env": cfg.env.name, "algo": cfg.algo.name, "seed": cfg.seed}}
+    run = new_run(cfg)
     checkpoint = Checkpoint(actor=actor, optim_actor=optimizer, rng=GlobalRNGState(), run=run)
-    if resuming:  # the checkpoint is written once training is done: nothing is left to train
-        resume(checkpoint, run_dir / "checkpoint", cfg, run)
-    else:
-        OmegaConf.save(cfg, run_dir / "config.yaml", resolve=True)
+    # The checkpoint is written once training is done: a resumed BC run has nothing left to train,
+    # and its logs (indexed by BC steps, not frames) stay as they are.
+    start_or_resume(checkpoint, run_dir, cfg, run, resuming, truncate_logs=False)
     loggers = make_loggers(cfg, run_dir, run["loggers"])
 
     start = time.time()
@@ -47,9 +44,8 @@ def run_bc(cfg, run_dir: Path, resuming: bool) -> None:
         optimizer.zero_grad(set_to_none=True)
         if (step + 1) % 10 == 0 or step + 1 == steps:
             log_metrics(loggers, {"bc/loss": out["loss_bc"]}, step + 1)  # x axis: BC steps
-    train_seconds = time.time() - start
     if run["gradient_steps"] < steps:
-        run["gradient_steps"] = steps
+        run["gradient_steps"], run["train_seconds"] = steps, time.time() - start
         run["evals"] = [(0, evaluate(env, actor, cfg.eval.episodes, cfg.env.max_episode_steps))]
         log_metrics(loggers, {"eval/return": run["evals"][0][1]}, 0)
         run["loggers"] = logger_states(loggers)
@@ -60,5 +56,5 @@ def run_bc(cfg, run_dir: Path, resuming: bool) -> None:
         run_dir, cfg, teacher_return=teacher_return, alpha_switch_frame=None, teacher_source=teacher_source,
         offline=True, frames=0, gradient_steps=run["gradient_steps"], final_eval_return=final,
         best_eval_return=final, passed_teacher_at_frame=0 if final > teacher_return else None,
-        train_seconds=train_seconds,
+        train_seconds=run["train_seconds"],
     )

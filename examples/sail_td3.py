@@ -23,11 +23,11 @@ import hydra
 import torch
 import tqdm
 from hydra.core.hydra_config import HydraConfig
-from omegaconf import OmegaConf
 from torchrl._utils import timeit
 from torchrl.checkpoint import Checkpoint, GlobalRNGState
 
 from bc import run_bc
+from gail import run_gail
 from torchrl_sail import AbsorbingStateTransform, MixedReplayBuffer, TRANSITION_KEYS
 from utils import (
     check_config,
@@ -48,8 +48,9 @@ from utils import (
     make_rnd,
     make_teacher,
     make_update,
-    resume,
+    new_run,
     resume_mode,
+    start_or_resume,
     seed_everything,
     train_timing,
     write_summary,
@@ -70,6 +71,8 @@ def main(cfg):  # noqa: F821
     seed_everything(cfg.seed)
     if cfg.algo.learner == "bc":  # offline: no env frames, no TD3
         return run_bc(cfg, run_dir, resuming)
+    if cfg.algo.learner == "ppo":  # GAIL: on-policy
+        return run_gail(cfg, run_dir, resuming)
 
     # --- env, teacher, buffers (everything is validated before training starts)
     env, eval_env = make_env(cfg, cfg.seed), make_env(cfg, cfg.seed + 10_000)
@@ -95,8 +98,7 @@ def main(cfg):  # noqa: F821
     d_batches = MixedReplayBuffer(teacher, recent)
 
     # --- everything a stopped run needs to continue, saved and restored as one
-    run = {"frames": 0, "gradient_steps": 0, "evals": [], "passed_teacher_at": None, "loggers": {},
-           "identity": {"env": cfg.env.name, "algo": cfg.algo.name, "seed": cfg.seed}}
+    run = new_run(cfg)
     stateful = {"loss": loss, "discriminator": discriminator, "replay": FilledRows(replay), "teacher": teacher,
                 "alpha": alpha_scheduler, "rng": GlobalRNGState(), "run": run,
                 **{f"optim_{name}": optimizer for name, optimizer in optimizers.items()}}
@@ -105,13 +107,11 @@ def main(cfg):  # noqa: F821
     if rnd is not None:
         stateful["rnd"] = rnd
     checkpoint = Checkpoint(**stateful)
+    start_or_resume(checkpoint, run_dir, cfg, run, resuming)
     if resuming:
-        resume(checkpoint, checkpoint_path, cfg, run)
         # The env restarts on a fresh episode: a trajectory cut by the stop is not offered.
         teacher.writer.clear_unfinished()
         env.set_seed(cfg.seed + run["frames"])  # a different episode stream than the one before the stop
-    else:
-        OmegaConf.save(cfg, run_dir / "config.yaml", resolve=True)
     loggers = make_loggers(cfg, run_dir, run["loggers"])
 
     update = make_update(cfg, loss, optimizers, target_updater)

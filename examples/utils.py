@@ -15,14 +15,15 @@ import numpy as np
 import torch
 from omegaconf import DictConfig, OmegaConf
 from tensordict import TensorDict
-from tensordict.nn import TensorDictModule, TensorDictSequential
+from tensordict.nn import InteractionType, TensorDictModule, TensorDictSequential
 from torch import nn
 from torchrl._utils import timeit
 from torchrl.collectors import Collector
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.envs import ExplorationType, set_exploration_type
-from torchrl.modules import MLP, AdditiveGaussianModule, TanhModule, ValueOperator
-from torchrl.objectives import RNDLoss, SoftUpdate
+from torchrl.modules import (MLP, AdditiveGaussianModule, NormalParamExtractor, ProbabilisticActor, TanhModule,
+                             TanhNormal, ValueOperator)
+from torchrl.objectives import RNDLoss, SACLoss, SoftUpdate
 from torchrl.record.loggers import get_logger
 
 from torchrl_sail import (
@@ -68,6 +69,8 @@ def check_config(cfg: DictConfig) -> None:
         ("optim.discriminator.batch_size", d.batch_size, 1),
         ("env.replay_size", cfg.env.replay_size, 1),
         ("eval.episodes", cfg.eval.episodes, 1),
+        *([("algo.ppo.frames_per_batch", cfg.algo.ppo.frames_per_batch, 1), ("algo.ppo.epochs", cfg.algo.ppo.epochs, 1),
+           ("algo.ppo.minibatch_size", cfg.algo.ppo.minibatch_size, 1)] if cfg.algo.learner == "ppo" else []),
         ("algo.bc.epochs", cfg.algo.bc.epochs, 1),
         ("algo.bc.batch_size", cfg.algo.bc.batch_size, 1),
         ("collector.init_random_frames", c.init_random_frames, 0),
@@ -87,12 +90,17 @@ def check_config(cfg: DictConfig) -> None:
         ("env.exploration_noise", cfg.env.exploration_noise, cfg.env.exploration_noise >= 0, "must be >= 0"),
         ("algo.discriminator_agent_data", cfg.algo.discriminator_agent_data,
          cfg.algo.discriminator_agent_data in ("replay", "recent"), "use replay | recent"),
-        ("algo.learner", cfg.algo.learner, cfg.algo.learner in ("td3", "bc"), "use td3 | bc"),
+        ("algo.learner", cfg.algo.learner, cfg.algo.learner in ("td3", "sac", "bc", "ppo"), "use td3 | sac | bc | ppo"),
+        ("optim.precision", o.precision, o.precision == "fp32" or cfg.algo.learner == "td3",
+         "bf16 is TD3's fused step only (algo.learner=td3)"),
+        ("optim.precision", o.precision, o.precision == "fp32" or not cfg.algo.absorbing_state,
+         "bf16 is TD3's fused step only, which the absorbing-state (DAC) actor does not use"),
         ("algo.reward.source", cfg.algo.reward.source, cfg.algo.reward.source in ("discriminator", "env", "shaped"),
          "use discriminator | env | shaped"),
         ("algo.reward.kind", cfg.algo.reward.kind, cfg.algo.reward.kind in ("gail", "airl"), "use gail | airl"),
-        ("algo.rnd", cfg.algo.rnd, cfg.algo.rnd is None or cfg.collector.num_workers == 1,
-         "the RND bonus keeps its statistics in the training env: use collector.num_workers=1"),
+        ("algo.rnd", cfg.algo.rnd, cfg.algo.rnd is None or (c.num_workers == 1 and c.backend in (None, "direct")),
+         "the RND bonus keeps its statistics in the training env: use collector.num_workers=1 and "
+         "collector.backend=null"),
         ("algo.absorbing_state", cfg.algo.absorbing_state, not (cfg.algo.absorbing_state and cfg.algo.adaptive),
          "absorbing states need a fixed teacher (algo.adaptive=false): promotion reads unrewritten trajectories"),
         ("teacher.eviction", cfg.teacher.eviction, cfg.teacher.eviction in ("topk", "fifo"), "use topk | fifo"),
@@ -231,10 +239,31 @@ class FilledRows:
 
 # ----------------------------------------------------------------------------- networks / losses
 def make_agent(cfg: DictConfig, env):
+    """Actor, critic and exploration policy: TD3's deterministic actor with Gaussian noise, or
+    (``algo.learner=sac``) SAC's tanh-Gaussian actor, which explores by sampling."""
     obs_dim = env.observation_spec["observation"].shape[-1]
     action_spec = env.action_spec
     act_dim = action_spec.shape[-1]
     activation = _ACTIVATIONS[cfg.network.activation]
+    critic = ValueOperator(
+        MLP(in_features=obs_dim + act_dim, out_features=1, num_cells=list(cfg.network.critic_cells),
+            activation_class=activation, device=cfg.device),
+        in_keys=["action", "observation"],
+    )
+    if cfg.algo.learner == "sac":
+        # TorchRL's sota SAC actor: MLP -> (loc, softplus scale) -> TanhNormal on the action bounds
+        net = nn.Sequential(
+            MLP(in_features=obs_dim, out_features=2 * act_dim, num_cells=list(cfg.network.actor_cells),
+                activation_class=activation, device=cfg.device),
+            NormalParamExtractor(scale_mapping="biased_softplus_1.0", scale_lb=0.1),
+        )
+        actor = ProbabilisticActor(
+            TensorDictModule(net, in_keys=["observation"], out_keys=["loc", "scale"]),
+            in_keys=["loc", "scale"], spec=action_spec, distribution_class=TanhNormal,
+            distribution_kwargs={"low": action_spec.space.low, "high": action_spec.space.high, "tanh_loc": False},
+            default_interaction_type=InteractionType.RANDOM,
+        )
+        return actor, critic, actor
     actor = TensorDictSequential(
         TensorDictModule(
             MLP(in_features=obs_dim, out_features=act_dim, num_cells=list(cfg.network.actor_cells),
@@ -243,11 +272,8 @@ def make_agent(cfg: DictConfig, env):
             out_keys=["param"],
         ),
         TanhModule(in_keys=["param"], out_keys=["action"], spec=action_spec),
-    )
-    critic = ValueOperator(
-        MLP(in_features=obs_dim + act_dim, out_features=1, num_cells=list(cfg.network.critic_cells),
-            activation_class=activation, device=cfg.device),
-        in_keys=["action", "observation"],
+        # DAC: pi(s_a) = 0, the action the absorbing transitions store
+        *([AbsorbingStateTransform().action_mask()] if cfg.algo.absorbing_state else []),
     )
     modules = [actor]
     if cfg.env.exploration_noise > 0:
@@ -293,24 +319,38 @@ def make_rnd(cfg: DictConfig, env) -> tuple[RNDReward | None, RNDLoss | None]:
     def net():
         return MLP(in_features=obs_dim, out_features=r.features, num_cells=list(r.cells), device=cfg.device)
 
-    rnd = RNDReward(net(), net(), coef=r.coef)
+    rnd = RNDReward(net(), net(), coef=r.coef, row_id_key="row_id")  # once per distinct row of a block
     env.append_transform(rnd)
     rnd.train()  # append_transform leaves transforms in eval mode, where RND's statistics stay frozen
     return rnd, RNDLoss(rnd.predictor_network, rnd.target_network)
 
 
+class TeacherShare:
+    """Where SAC runs keep SAIL's alpha: ``SACLoss.alpha`` is SAC's entropy temperature, and
+    the share acts through the batch composition alone (``MixedReplayBuffer``)."""
+
+    def __init__(self, alpha: float) -> None:
+        self.alpha = alpha
+
+
 def make_losses(cfg: DictConfig, actor, critic, discriminator, action_spec):
     o, a = cfg.optim, cfg.algo.alpha
-    # mixing="batch": alpha acts through the batch composition alone (the authors' code).
-    loss = SAILLoss(actor, critic, action_spec=action_spec, alpha=a.initial, mixing="batch",
-                    policy_noise=o.policy_noise, noise_clip=o.noise_clip, loss_function=o.loss_function)
+    if cfg.algo.learner == "sac":
+        loss = SACLoss(actor, critic, num_qvalue_nets=2, loss_function=o.loss_function,
+                       alpha_init=cfg.algo.sac.alpha_init, action_spec=action_spec)
+        share = TeacherShare(a.initial)
+    else:
+        # mixing="batch": alpha acts through the batch composition alone (the authors' code).
+        loss = SAILLoss(actor, critic, action_spec=action_spec, alpha=a.initial, mixing="batch",
+                        policy_noise=o.policy_noise, noise_clip=o.noise_clip, loss_function=o.loss_function)
+        share = loss
     loss.make_value_estimator(gamma=o.gamma)
     if o.truncation_is_terminal and not cfg.algo.absorbing_state:
         # The authors store done = 1 at time-limit truncation too: no bootstrap there. With
         # absorbing states (DAC) only terminations end an episode, and they bootstrap through s_a.
         loss.set_keys(terminated="done")
     updater = SoftUpdate(loss, tau=o.tau)
-    scheduler = AlphaScheduler(loss, mode=a.mode, initial=a.initial, final=a.final, anneal_frames=a.anneal_frames)
+    scheduler = AlphaScheduler(share, mode=a.mode, initial=a.initial, final=a.final, anneal_frames=a.anneal_frames)
     d_loss = DiscriminatorLoss(discriminator, entropy_coef=o.discriminator.entropy_coef,
                                gp_coef=o.discriminator.gp_coef)
     return loss, updater, scheduler, d_loss
@@ -327,14 +367,36 @@ def make_optimizers(cfg: DictConfig, loss, discriminator, rnd: RNDReward | None 
     }
     if rnd is not None:
         optimizers["rnd"] = adam(rnd.predictor_network.parameters(), lr=cfg.algo.rnd.lr)
+    if cfg.algo.learner == "sac":  # SAC's entropy temperature
+        optimizers["alpha"] = adam([loss.log_alpha], lr=cfg.algo.sac.alpha_lr)
     return optimizers
 
 
-def make_update(cfg: DictConfig, loss, optimizers: dict, target_updater) -> TD3Update:
-    """One TD3 gradient step: the fused implementation, or the loss's own (``optim.implementation=loss``)."""
-    return TD3Update(loss, critic_optimizer=optimizers["critic"], actor_optimizer=optimizers["actor"],
-                     target_updater=target_updater, implementation=cfg.optim.implementation,
-                     precision=cfg.optim.precision)
+def make_update(cfg: DictConfig, loss, optimizers: dict, target_updater):
+    """One gradient step ``update(batch, update_actor) -> metrics``: TD3's fused implementation or
+    the loss's own (``optim.implementation=loss``); for SAC, TorchRL's ``SACLoss`` as its sota script
+    steps it (actor, critics and temperature every step, then the targets)."""
+    if cfg.algo.learner != "sac":
+        # DAC's masked actor is not the fused step's MLP + tanh: it runs the loss's own step
+        implementation = "loss" if cfg.algo.absorbing_state else cfg.optim.implementation
+        return TD3Update(loss, critic_optimizer=optimizers["critic"], actor_optimizer=optimizers["actor"],
+                         target_updater=target_updater, implementation=implementation,
+                         precision=cfg.optim.precision)
+    steps = [optimizers[name] for name in ("critic", "actor", "alpha")]
+
+    def sac_update(batch, update_actor: bool) -> dict:  # noqa: ARG001 (SAC updates its actor every step)
+        out = loss(batch)
+        (out["loss_qvalue"] + out["loss_actor"] + out["loss_alpha"]).backward()
+        for optimizer in steps:
+            optimizer.step()
+            optimizer.zero_grad(set_to_none=True)
+        target_updater.step()
+        # SAC's alpha is its entropy temperature; "alpha" in the logs is SAIL's teacher share
+        return {"loss_qvalue": out["loss_qvalue"].detach(), "loss_actor": out["loss_actor"].detach(),
+                "loss_temperature": out["loss_alpha"].detach(), "temperature": out["alpha"].detach(),
+                "entropy": out["entropy"].detach()}
+
+    return sac_update
 
 
 # ----------------------------------------------------------------------------- evaluation
@@ -370,6 +432,8 @@ def resume_mode(cfg: DictConfig, run_dir: Path) -> bool | None:
                     f"{run_dir} holds a finished {done.get('frames')}-frame run but no checkpoint to extend it to "
                     f"collector.total_frames={cfg.collector.total_frames}; choose another folder.")
         if checkpoint.exists():
+            # until it ends, a continued run is unfinished: no summary of its earlier budget stays
+            summary.unlink(missing_ok=True)
             return True
         shutil.rmtree(run_dir / "logs", ignore_errors=True)
         return False
@@ -379,8 +443,26 @@ def resume_mode(cfg: DictConfig, run_dir: Path) -> bool | None:
     return cfg.resume
 
 
-def resume(checkpoint, path: Path, cfg: DictConfig, run: dict) -> None:
-    """Restores every component of ``checkpoint`` from ``path``, after checking that it is this run's."""
+def new_run(cfg: DictConfig) -> dict:
+    """The run's own state, saved with the checkpoint: counters, evaluations, logger states, identity."""
+    return {"frames": 0, "gradient_steps": 0, "evals": [], "passed_teacher_at": None, "loggers": {},
+            "identity": {"env": cfg.env.name, "algo": cfg.algo.name, "seed": cfg.seed, "teacher": cfg.teacher.path}}
+
+
+def start_or_resume(checkpoint, run_dir: Path, cfg: DictConfig, run: dict, resuming: bool, *,
+                    truncate_logs: bool = True) -> None:
+    """Restores ``checkpoint`` from ``run_dir`` when ``resuming``, then writes the config the run goes on with."""
+    if resuming:
+        resume(checkpoint, run_dir / "checkpoint", cfg, run, truncate_logs=truncate_logs)
+    OmegaConf.save(cfg, run_dir / "config.yaml", resolve=True)
+
+
+def resume(checkpoint, path: Path, cfg: DictConfig, run: dict, *, truncate_logs: bool = True) -> None:
+    """Restores every component of ``checkpoint`` from ``path``, after checking that it is this run's.
+
+    ``truncate_logs`` drops the CSV rows logged after the checkpoint's frame (they are logged
+    again); offline runs, whose logs are not indexed by frames, keep theirs.
+    """
     if not (path / "manifest.json").exists():
         raise FileNotFoundError(
             f"resume=true but there is no checkpoint at {path}: start without resume=true, or point "
@@ -390,12 +472,15 @@ def resume(checkpoint, path: Path, cfg: DictConfig, run: dict) -> None:
         checkpoint.load(path, components=["run"])
     except Exception as err:  # a damaged folder
         raise ValueError(f"checkpoint {path} is unreadable ({type(err).__name__}: {err}); delete it to start over.") from err
-    for key in ("env", "algo", "seed"):
-        this = {"env": cfg.env.name, "algo": cfg.algo.name, "seed": cfg.seed}[key]
-        if run["identity"][key] != this:
-            raise ValueError(f"resume=true: {path} was written with {key}={run['identity'][key]!r}, "
-                             f"this run has {key}={this!r}; use the same value.")
+    this = new_run(cfg)["identity"]
+    for key, saved in run["identity"].items():  # (checkpoints from before the teacher was recorded lack it)
+        if saved != this[key]:
+            key_name = "teacher.path" if key == "teacher" else key
+            raise ValueError(f"resume: {path} was written with {key_name}={saved!r}, "
+                             f"this run has {key_name}={this[key]!r}; use the same value.")
     checkpoint.load(path)
+    if not truncate_logs:
+        return
     # Rows logged after the checkpoint are logged again by this run: drop them.
     for csv in sorted((path.parent / "logs" / "scalars").glob("**/*.csv")):
         lines = csv.read_text().splitlines(keepends=True)

@@ -62,33 +62,39 @@ class TestAbsorbingStateTransform:
         assert stored.shape[0] == rollout.shape[0] + 1
         assert stored["next", "observation"][-2:].tolist() == [[0.0] * 12 + [1.0]] * 2
 
-    def test_loss_bootstraps_through_the_absorbing_state(self):
-        # TD(0) with terminated=False at the terminal and absorbing rows: y = r + gamma * Q'(s_a, pi'(s_a))
-        from torchrl.modules import MLP, TanhModule, ValueOperator
+    def test_loss_bootstraps_through_the_absorbing_state_with_the_zero_action(self):
+        # TD(0), no smoothing noise, terminated=False at the terminal and absorbing rows, and a masked
+        # actor (pi(s_a) = 0): y = r + gamma * min_i Q_i'(s_a, 0), where the critic is trained.
         from tensordict.nn import TensorDictModule, TensorDictSequential
         from torchrl.data import Bounded as B
+        from torchrl.modules import MLP, TanhModule, ValueOperator
         from torchrl.objectives import SoftUpdate
 
         spec = B(-1.0, 1.0, shape=(1,))
+        transform = AbsorbingStateTransform()
         actor = TensorDictSequential(TensorDictModule(MLP(in_features=2, out_features=1, num_cells=[4]),
                                                       ["observation"], ["param"]),
-                                     TanhModule(in_keys=["param"], out_keys=["action"], spec=spec))
+                                     TanhModule(in_keys=["param"], out_keys=["action"], spec=spec),
+                                     transform.action_mask())
         critic = ValueOperator(MLP(in_features=3, out_features=1, num_cells=[4]), in_keys=["action", "observation"])
         loss = SAILLoss(actor, critic, action_spec=spec, policy_noise=0.0, noise_clip=0.0)
         loss.make_value_estimator(gamma=0.9)
         SoftUpdate(loss, tau=0.1)  # targets as a run has them (and no missing-updater warning)
-        out = AbsorbingStateTransform()(_transitions([True], [False]))
+        out = transform(_transitions([True], [False]))
         _, meta = loss.value_loss(out)
-        s_a = torch.tensor([[0.0, 1.0]])
-        with torch.no_grad(), loss.target_actor_network_params.to_module(loss.actor_network):
-            a_next = loss.actor_network(TensorDict(observation=s_a, batch_size=[1]))["action"]
+        s_a = TensorDict(observation=torch.tensor([[0.0, 1.0]]), action=torch.zeros(1, 1), batch_size=[1])
         q_next = []
         for i in range(2):
             with torch.no_grad(), loss.target_qvalue_network_params[i].to_module(loss.qvalue_network):
-                q_next.append(loss.qvalue_network(TensorDict(observation=s_a, action=a_next, batch_size=[1]))
-                              ["state_action_value"])
+                q_next.append(loss.qvalue_network(s_a.clone())["state_action_value"])
         expected = out["next", "reward"] + 0.9 * torch.minimum(*q_next)
         torch.testing.assert_close(meta["target_value"].reshape(-1, 1), expected.expand(2, 1))
+
+        # The actor gets no gradient from an absorbing row: its action there is the constant 0.
+        loss_actor, _ = loss.actor_loss(out[1:])  # the (s_a, 0, s_a) row alone
+        loss_actor.backward()
+        grads = [p.grad for p in loss.actor_network_params.values(True, True) if p.grad is not None]
+        assert grads and all(bool((g == 0).all()) for g in grads)
 
 
 if __name__ == "__main__":

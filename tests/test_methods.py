@@ -21,7 +21,7 @@ def outputs_written(run_dir, algo, frames):
     return summary
 
 
-@pytest.mark.parametrize("algo", ["dac", "ddpgfd", "pofd", "td3_delayed", "sail_rnd"])
+@pytest.mark.parametrize("algo", ["dac", "ddpgfd", "pofd", "td3_delayed", "sail_rnd", "sail_sac"])
 def test_td3_baselines_run(tmp_path, teacher_dir, algo):
     run_dir = tmp_path / algo
     run(run_dir, f"algo={algo}", f"teacher.path={teacher_dir / HOPPER}", *COMMON)
@@ -38,6 +38,11 @@ def test_td3_baselines_run(tmp_path, teacher_dir, algo):
         assert len(scalar(run_dir, "rnd/loss_predictor")) >= 2 and scalar(run_dir, "train/intrinsic_reward")
         rnd = saved(run_dir, "rnd")["rnd"]
         assert rnd["_obs_rms.count"] >= 2000  # the training env's statistics, one update per step
+    elif algo == "sail_sac":  # SAIL's alpha and D; SAC's temperature learned beside them
+        assert alphas == {0.5} and trains_d and scalar(run_dir, "sail/d_reward_mean")
+        temperatures = [value for _, value in scalar(run_dir, "sail/temperature")]
+        assert temperatures and temperatures[-1] != 1.0 and scalar(run_dir, "sail/entropy")
+        assert "log_alpha" in saved(run_dir, "loss")["loss"]
     else:  # dac, pofd: a discriminator, no teacher rows
         assert alphas == {0.0} and trains_d and scalar(run_dir, "sail/d_reward_mean")
     replay = saved(run_dir, "replay")["replay"]
@@ -81,6 +86,21 @@ def test_bc_is_offline_and_skipped_when_finished(tmp_path, teacher_dir):
     assert "finished run: skipped" in proc.stdout and (run_dir / "summary.json").stat().st_mtime_ns == stamp
 
 
+def test_gail_runs_on_policy_and_resumes(tmp_path, teacher_dir):
+    run_dir = tmp_path / "gail"
+    args = ["algo=gail", "env=Hopper-v4", f"teacher.path={teacher_dir / HOPPER}", "algo.ppo.frames_per_batch=512",
+            "eval.every_frames=1024", "eval.episodes=1", "checkpoint.every_frames=1024", "logger.backends=[csv]",
+            "resume=auto"]
+    run(run_dir, *args, "collector.total_frames=2048")
+    summary = outputs_written(run_dir, "gail", 2048)
+    assert summary["gradient_steps"] == 4 * 10 * 8  # batches x PPO epochs x minibatches of 64
+    assert scalar(run_dir, "d/loss_discriminator") and scalar(run_dir, "ppo/loss_objective")
+    assert [frame for frame, _ in scalar(run_dir, "eval/return")] == [1024, 2048]
+    run(run_dir, *args, "collector.total_frames=3072")  # continued from the 2048-frame checkpoint
+    assert [frame for frame, _ in scalar(run_dir, "eval/return")] == [1024, 2048, 3072]
+    assert json.loads((run_dir / "summary.json").read_text())["gradient_steps"] == 6 * 10 * 8
+
+
 def test_resume_auto_continues_skips_and_restarts(tmp_path, teacher_dir):
     run_dir = tmp_path / "run"
     args = ["algo=ddpgfd", f"teacher.path={teacher_dir / HOPPER}", *COMMON, "resume=auto"]
@@ -115,6 +135,7 @@ def test_resume_auto_continues_skips_and_restarts(tmp_path, teacher_dir):
         (["algo.reward.source=dense"], "algo.reward.source='dense'"),
         (["algo.reward.kind=wgan"], "algo.reward.kind='wgan'"),
         (["algo=sail_rnd", "collector.num_workers=2"], "use collector.num_workers=1"),
+        (["algo=sail_sac", "optim.precision=bf16"], "bf16 is TD3's fused step only"),
         (["algo=bc", "algo.bc.batch_size=0"], "algo.bc.batch_size=0"),
         (["resume=maybe"], "resume='maybe'"),
     ],
@@ -126,7 +147,7 @@ def test_bad_method_config_fails_before_training(tmp_path, teacher_dir, override
     assert not (tmp_path / "run" / "checkpoint").exists()
 
 
-@pytest.mark.parametrize("algo", ["bc", "dac"])
+@pytest.mark.parametrize("algo", ["bc", "dac", "gail"])
 def test_method_without_a_teacher_is_refused(tmp_path, algo):
     # InvertedPendulum has no shipped teacher: every method that needs one says how to get one.
     proc = run(tmp_path / "run", f"algo={algo}", "env=InvertedPendulum-v4", "collector.total_frames=1000", check=False)

@@ -61,6 +61,22 @@ class TestRNDReward:
         assert whole.shape == (5, 7, 1)
         torch.testing.assert_close(chunked, whole)
 
+    def test_row_ids_evaluate_each_distinct_row_once(self):
+        torch.manual_seed(0)
+        calls = []
+        target = nn.Linear(3, 4)
+        predictor = nn.Linear(3, 4)
+        predictor.register_forward_hook(lambda module, args, out: calls.append(args[0].shape[0]))
+        rnd = RNDReward(target, predictor, normalize_obs=False, normalize_reward=False, row_id_key="row_id")
+        stored = torch.randn(5, 3)
+        ids = torch.tensor([[0, 3, 3, 1], [4, 0, 1, 1]])  # a [2, 4] block drawing 4 distinct rows
+        block = TensorDict({"row_id": ids, "next": {"observation": stored[ids], "reward": torch.zeros(2, 4, 1)}},
+                           batch_size=[2, 4])
+        out = rnd(block.clone())
+        assert calls == [4]
+        expected = RNDReward(target, predictor, normalize_obs=False, normalize_reward=False).bonus(stored[ids])
+        torch.testing.assert_close(out["next", "reward"], expected)
+
     def test_bad_chunk_size(self):
         with pytest.raises(ValueError, match="chunk_size"):
             RNDReward(nn.Linear(2, 2), nn.Linear(2, 2), chunk_size=0)

@@ -12,13 +12,20 @@ from __future__ import annotations
 
 import torch
 from tensordict import TensorDictBase
+from tensordict.nn import TensorDictModule
 from tensordict.utils import NestedKey
 from torchrl.data.tensor_specs import TensorSpec
+from torch import nn
 from torchrl.envs.transforms import Transform
 
 from torchrl_sail.envs._specs import append_unit_column
 
 __all__ = ["AbsorbingStateTransform"]
+
+
+class _ZeroAtAbsorbing(nn.Module):
+    def forward(self, action: torch.Tensor, observation: torch.Tensor) -> torch.Tensor:
+        return action * (1 - observation[..., -1:])
 
 
 class AbsorbingStateTransform(Transform):
@@ -46,6 +53,12 @@ class AbsorbingStateTransform(Transform):
 
     A loss that bootstraps on ``terminated`` (TD3's default, not ``set_keys(terminated="done")``)
     then learns ``Q(s_a) = r(s_a) + γ Q(s_a)``, as DAC does.
+
+    **The policy at** ``s_a`` (:meth:`action_mask`): append ``transform.action_mask()`` to a
+    deterministic actor so that ``pi(s_a) = 0``, the action of the stored absorbing
+    transitions. The TD target at ``s_a`` then reads the critic where it is trained, and the
+    actor gets no gradient from absorbing rows (DAC's code zeroes the target action there and
+    skips those rows in the actor loss).
 
     **Raw transitions** (:meth:`forward`, e.g. demonstrations recorded without the
     indicator): appends the indicator to the root and ``("next", ...)`` observations, then
@@ -94,6 +107,25 @@ class AbsorbingStateTransform(Transform):
     @property
     def observation_key(self) -> NestedKey:
         return self.in_keys[0]
+
+    def action_mask(self) -> TensorDictModule:
+        """A module that zeroes ``action_key`` where the observation is the absorbing state.
+
+        Append it to a deterministic actor (``TensorDictSequential(actor, transform.action_mask())``):
+        real states (indicator 0) keep their action, ``s_a`` gets the zero action.
+
+        Examples:
+            >>> import torch
+            >>> from tensordict import TensorDict
+            >>> from torchrl_sail import AbsorbingStateTransform
+            >>> mask = AbsorbingStateTransform().action_mask()
+            >>> td = TensorDict(action=torch.ones(2, 1), observation=torch.tensor([[3.0, 0.0], [0.0, 1.0]]),
+            ...                 batch_size=[2])
+            >>> mask(td)["action"].squeeze(-1).tolist()
+            [1.0, 0.0]
+        """
+        return TensorDictModule(_ZeroAtAbsorbing(), in_keys=[self.action_key, self.observation_key],
+                                out_keys=[self.action_key])
 
     def _apply_transform(self, obs: torch.Tensor) -> torch.Tensor:
         return torch.cat([obs, obs.new_zeros(*obs.shape[:-1], 1)], dim=-1)

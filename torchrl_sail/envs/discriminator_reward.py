@@ -30,6 +30,8 @@ from tensordict.utils import NestedKey, unravel_key
 from torchrl.data.tensor_specs import TensorSpec, Unbounded
 from torchrl.envs.transforms import Transform
 
+from torchrl_sail.envs._rows import distinct_rows
+
 __all__ = ["DiscriminatorReward"]
 
 
@@ -192,13 +194,10 @@ class DiscriminatorReward(Transform):
         lead = obs.shape[:-1]
         obs, act = obs.reshape(lead.numel(), -1), act.reshape(lead.numel(), -1)
         ids = None if self.row_id_key is None else tensordict.get(self.row_id_key, None)
-        if ids is not None:
-            ids = ids.reshape(-1)
-            distinct, inverse = torch.unique(ids, return_inverse=True)
-            if distinct.numel() < ids.numel():
-                # one position per distinct id (any of its repeats: they hold the same (s, a))
-                first = torch.empty_like(distinct).scatter_(0, inverse, torch.arange(ids.numel(), device=ids.device))
-                return self._evaluate(obs[first], act[first])[inverse].reshape(*lead, 1)
+        rows = None if ids is None else distinct_rows(ids)
+        if rows is not None:
+            first, inverse = rows
+            return self._evaluate(obs[first], act[first])[inverse].reshape(*lead, 1)
         return self._evaluate(obs, act).reshape(*lead, 1)
 
     def _reward(self, logit: torch.Tensor, current: TensorDictBase, key: NestedKey) -> torch.Tensor:

@@ -14,6 +14,8 @@ from tensordict.utils import NestedKey, unravel_key
 from torch import nn
 from torchrl.envs.transforms import RNDTransform
 
+from torchrl_sail.envs._rows import distinct_rows
+
 __all__ = ["RNDReward"]
 
 
@@ -45,6 +47,10 @@ class RNDReward(RNDTransform):
             Defaults to ``"reward"``.
         chunk_size (int, optional): the buffer path evaluates this many rows at a time (a block
             of batches holds a quarter of a million). Defaults to ``4096``.
+        row_id_key (NestedKey, optional): buffer path: when the input holds this entry (e.g.
+            written by ``MixedReplayBuffer(row_id_key=...)``), the networks run once per
+            distinct id; rows with equal ids must hold equal next observations. Defaults to
+            ``None`` (every row evaluated).
         **kwargs: :class:`~torchrl.envs.transforms.RNDTransform`'s ``in_keys``, ``out_keys``,
             ``normalize_obs``, ``normalize_reward``, ``obs_clip``, ``reward_clip``.
 
@@ -64,13 +70,15 @@ class RNDReward(RNDTransform):
     """
 
     def __init__(self, target_network: nn.Module, predictor_network: nn.Module, *, coef: float = 1.0,
-                 reward_key: NestedKey = "reward", chunk_size: int = 4096, **kwargs) -> None:
+                 reward_key: NestedKey = "reward", chunk_size: int = 4096, row_id_key: NestedKey | None = None,
+                 **kwargs) -> None:
         if chunk_size < 1:
             raise ValueError(f"chunk_size must be >= 1, got {chunk_size}.")
         super().__init__(target_network, predictor_network, **kwargs)
         self.coef = coef
         self.reward_key = reward_key
         self.chunk_size = chunk_size
+        self.row_id_key = row_id_key
 
     @torch.no_grad()
     def bonus(self, obs: torch.Tensor) -> torch.Tensor:
@@ -95,6 +103,13 @@ class RNDReward(RNDTransform):
             tensordict (TensorDictBase): transitions with ``("next", in_key)`` and the reward.
         """
         key = unravel_key(("next", self.reward_key))
-        bonus = self.bonus(tensordict.get(unravel_key(("next", self.in_keys[0]))))
+        obs = tensordict.get(unravel_key(("next", self.in_keys[0])))
+        ids = None if self.row_id_key is None else tensordict.get(self.row_id_key, None)
+        rows = None if ids is None else distinct_rows(ids)
+        if rows is None:
+            bonus = self.bonus(obs)
+        else:
+            first, inverse = rows
+            bonus = self.bonus(obs.reshape(-1, obs.shape[-1])[first])[inverse].reshape(*obs.shape[:-1], 1)
         tensordict.set(key, tensordict.get(key) + self.coef * bonus.to(tensordict.get(key).dtype))
         return tensordict
