@@ -57,6 +57,12 @@ def test_td3_baselines_run(tmp_path, teacher_dir, algo):
     else:
         assert replay["size"] == 2000
 
+    # resume works for every method: a larger budget continues from the 2000-frame checkpoint
+    run(run_dir, f"algo={algo}", f"teacher.path={teacher_dir / HOPPER}", *COMMON, "collector.total_frames=3000",
+        "resume=auto")
+    assert [frame for frame, _ in scalar(run_dir, "eval/return")] == [1000, 2000, 3000]
+    assert json.loads((run_dir / "summary.json").read_text())["gradient_steps"] == 150
+
 
 def test_pofd_reward_is_the_env_reward_plus_the_shaping(tmp_path, teacher_dir):
     # With coef=0 the shaped reward is the env reward: the first TD3 block (1000 frames, before
