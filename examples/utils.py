@@ -91,10 +91,6 @@ def check_config(cfg: DictConfig) -> None:
         ("algo.discriminator_agent_data", cfg.algo.discriminator_agent_data,
          cfg.algo.discriminator_agent_data in ("replay", "recent"), "use replay | recent"),
         ("algo.learner", cfg.algo.learner, cfg.algo.learner in ("td3", "sac", "bc", "ppo"), "use td3 | sac | bc | ppo"),
-        ("optim.precision", o.precision, o.precision == "fp32" or cfg.algo.learner == "td3",
-         "bf16 is TD3's fused step only (algo.learner=td3)"),
-        ("optim.precision", o.precision, o.precision == "fp32" or not cfg.algo.absorbing_state,
-         "bf16 is TD3's fused step only, which the absorbing-state (DAC) actor does not use"),
         ("algo.reward.source", cfg.algo.reward.source, cfg.algo.reward.source in ("discriminator", "env", "shaped"),
          "use discriminator | env | shaped"),
         ("algo.reward.kind", cfg.algo.reward.kind, cfg.algo.reward.kind in ("gail", "airl"), "use gail | airl"),
@@ -106,8 +102,10 @@ def check_config(cfg: DictConfig) -> None:
         ("teacher.eviction", cfg.teacher.eviction, cfg.teacher.eviction in ("topk", "fifo"), "use topk | fifo"),
         ("optim.implementation", o.implementation, o.implementation in ("fused", "loss"), "use fused | loss"),
         ("optim.precision", o.precision, o.precision in ("fp32", "bf16"), "use fp32 | bf16"),
-        ("optim.precision", o.precision, o.precision == "fp32" or o.implementation == "fused",
-         "bf16 needs optim.implementation=fused"),
+        ("optim.precision", o.precision, o.precision == "fp32" or (
+            o.implementation == "fused" and cfg.algo.learner == "td3" and not cfg.algo.absorbing_state),
+         "bf16 is TD3's fused step only: optim.implementation=fused, algo.learner=td3, and no absorbing "
+         "states (DAC's actor runs the loss's own step)"),
         ("collector.backend", c.backend, c.backend in (None, "direct", "process", "ray"),
          "use null, direct, process or ray"),
         ("collector.backend", c.backend, c.backend != "direct" or c.num_workers == 1,
