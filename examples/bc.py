@@ -16,8 +16,11 @@ import tqdm
 from torchrl.checkpoint import Checkpoint, GlobalRNGState
 from torchrl.objectives import BCLoss
 
+from torchrl_sail import DivergenceCheck
+
 from utils import evaluate, log_metrics, logger_states, make_agent, make_env, make_loggers, make_teacher, new_run, \
     start_or_resume, write_summary
+from video import log_video, make_render_env
 
 
 def run_bc(cfg, run_dir: Path, resuming: bool) -> None:
@@ -33,9 +36,10 @@ def run_bc(cfg, run_dir: Path, resuming: bool) -> None:
     checkpoint = Checkpoint(actor=actor, optim_actor=optimizer, rng=GlobalRNGState(), run=run)
     # The checkpoint is written once training is done: a resumed BC run has nothing left to train,
     # and its logs (indexed by BC steps, not frames) stay as they are.
-    start_or_resume(checkpoint, run_dir, cfg, run, resuming, truncate_logs=False)
+    start_or_resume(checkpoint, run_dir, cfg, run, resuming, optimizers=[optimizer], truncate_logs=False)
     loggers = make_loggers(cfg, run_dir, run["loggers"])
 
+    divergence = DivergenceCheck({"loss": loss}, unit="BC step")  # BC's checkpoint is written once, after training
     start = time.time()
     for step in tqdm.trange(run["gradient_steps"], steps, unit="steps", desc="BC"):
         out = loss(teacher.sample(cfg.algo.bc.batch_size))
@@ -43,11 +47,14 @@ def run_bc(cfg, run_dir: Path, resuming: bool) -> None:
         optimizer.step()
         optimizer.zero_grad(set_to_none=True)
         if (step + 1) % 10 == 0 or step + 1 == steps:
+            divergence({"bc/loss": out["loss_bc"]}, frame=step + 1)
             log_metrics(loggers, {"bc/loss": out["loss_bc"]}, step + 1)  # x axis: BC steps
     if run["gradient_steps"] < steps:
         run["gradient_steps"], run["train_seconds"] = steps, time.time() - start
         run["evals"] = [(0, evaluate(env, actor, cfg.eval.episodes, cfg.env.max_episode_steps))]
         log_metrics(loggers, {"eval/return": run["evals"][0][1]}, 0)
+        if cfg.eval.video_every_frames:  # offline: the one evaluation (frame 0) gets the one video
+            log_video(loggers, make_render_env(cfg, cfg.seed + 30_000, cfg.eval.video_size), actor, cfg, run_dir, 0)
         run["loggers"] = logger_states(loggers)
         checkpoint.save(run_dir / "checkpoint")
 

@@ -23,9 +23,10 @@ from torchrl.modules import MLP, ProbabilisticActor, TanhNormal, ValueOperator
 from torchrl.objectives import ClipPPOLoss, group_optimizers
 from torchrl.objectives.value import GAE
 
-from torchrl_sail import DiscriminatorLoss, DiscriminatorReward, MixedReplayBuffer, TRANSITION_KEYS
+from torchrl_sail import DiscriminatorLoss, DivergenceCheck, DiscriminatorReward, MixedReplayBuffer, TRANSITION_KEYS
 from utils import crossings, evaluate, log_metrics, logger_states, make_discriminator, make_env, make_loggers, \
     make_replay, make_teacher, new_run, start_or_resume, train_timing, write_summary
+from video import log_video, make_render_env
 
 
 def make_ppo_models(cfg, env):
@@ -74,16 +75,24 @@ def run_gail(cfg, run_dir: Path, resuming: bool) -> None:
     run = new_run(cfg)
     checkpoint = Checkpoint(actor=actor, critic=critic, discriminator=discriminator, rng=GlobalRNGState(), run=run,
                             **{f"optim_{name}": optimizer for name, optimizer in optimizers.items()})
-    start_or_resume(checkpoint, run_dir, cfg, run, resuming)
+    start_or_resume(checkpoint, run_dir, cfg, run, resuming, optimizers=optimizers.values())
     if resuming:
         env.set_seed(cfg.seed + run["frames"])  # a different episode stream than the one before the stop
     loggers = make_loggers(cfg, run_dir, run["loggers"])
+    divergence = DivergenceCheck({"actor": actor, "critic": critic, "discriminator": discriminator})
+    checkpoint_path = run_dir / "checkpoint"
+
+    def check(metrics: dict, frames: int) -> None:
+        saved = (checkpoint_path / "manifest.json").exists()
+        divergence(metrics, frame=frames, checkpoint=f"{checkpoint_path}, frame {run['frames']}" if saved else None)
 
     def save(frames: int) -> None:
+        check(metrics, frames)
         run.update(frames=frames, loggers=logger_states(loggers))
-        checkpoint.save(run_dir / "checkpoint")
+        checkpoint.save(checkpoint_path)
 
-    frames = run["frames"]
+    render_env = make_render_env(cfg, cfg.seed + 30_000, cfg.eval.video_size) if cfg.eval.video_every_frames else None
+    frames, metrics = run["frames"], {}
     collector = Collector(env, actor, frames_per_batch=p.frames_per_batch, track_traj_ids=False,
                           total_frames=max(cfg.collector.total_frames - frames, 0))
     pbar = tqdm.tqdm(total=cfg.collector.total_frames, initial=frames, unit="frames")
@@ -125,7 +134,10 @@ def run_gail(cfg, run_dir: Path, resuming: bool) -> None:
             run["evals"].append((frames, metrics["eval/return"]))
             if run["passed_teacher_at"] is None and metrics["eval/return"] > teacher_return:
                 run["passed_teacher_at"] = frames
+        if crossings(cfg.eval.video_every_frames, 0, before, frames):
+            log_video(loggers, render_env, actor, cfg, run_dir, frames)
         metrics["time/fps"] = (frames - start_frames) / max(time.time() - start, 1e-9)
+        check(metrics, frames)
         log_metrics(loggers, metrics, frames)
         pbar.update(data.numel())
         if crossings(cfg.checkpoint.every_frames, 0, before, frames):

@@ -16,6 +16,10 @@ outputs (``logs/``), ``learning_curve.png``, ``summary.json`` and ``checkpoint/`
 """
 from __future__ import annotations
 
+from mujoco_gl import check_mujoco_gl
+
+check_mujoco_gl()  # before TorchRL imports MuJoCo, which loads the MUJOCO_GL backend on import
+
 import time
 from pathlib import Path
 
@@ -27,8 +31,9 @@ from torchrl._utils import timeit
 from torchrl.checkpoint import Checkpoint, GlobalRNGState
 
 from bc import run_bc
+from config_schema import register_config_schema
 from gail import run_gail
-from torchrl_sail import AbsorbingStateTransform, MixedReplayBuffer, TRANSITION_KEYS
+from torchrl_sail import AbsorbingStateTransform, DivergenceCheck, MixedReplayBuffer, TRANSITION_KEYS
 from utils import (
     check_config,
     crossings,
@@ -55,6 +60,9 @@ from utils import (
     train_timing,
     write_summary,
 )
+from video import log_video, make_render_env
+
+register_config_schema()  # the typed schema conf/config.yaml extends: Hydra checks every value against it
 
 
 @hydra.main(version_base="1.3", config_path="../conf", config_name="config")
@@ -107,12 +115,17 @@ def main(cfg):  # noqa: F821
     if rnd is not None:
         stateful["rnd"] = rnd
     checkpoint = Checkpoint(**stateful)
-    start_or_resume(checkpoint, run_dir, cfg, run, resuming)
+    start_or_resume(checkpoint, run_dir, cfg, run, resuming, optimizers=optimizers.values())
     if resuming:
         # The env restarts on a fresh episode: a trajectory cut by the stop is not offered.
         teacher.writer.clear_unfinished()
         env.set_seed(cfg.seed + run["frames"])  # a different episode stream than the one before the stop
     loggers = make_loggers(cfg, run_dir, run["loggers"])
+    # NaN/inf in a logged loss or a parameter stops the run before it is logged or saved
+    divergence = DivergenceCheck({"loss": loss, "discriminator": discriminator, **({"rnd": rnd} if rnd else {})})
+
+    # Videos of one deterministic episode (eval.video_every_frames; a missing GL backend fails here, before training)
+    render_env = make_render_env(cfg, cfg.seed + 30_000, cfg.eval.video_size) if cfg.eval.video_every_frames else None
 
     update = make_update(cfg, loss, optimizers, target_updater)
     reduced_precision = torch.autocast(torch.device(cfg.device).type, dtype=torch.bfloat16,
@@ -133,7 +146,11 @@ def main(cfg):  # noqa: F821
         optimizers["rnd"].zero_grad(set_to_none=True)
         return {"rnd/loss_predictor": out["loss_predictor"].detach()}
 
+    def last_checkpoint() -> str | None:
+        return f"{checkpoint_path}, frame {run['frames']}" if (checkpoint_path / "manifest.json").exists() else None
+
     def save(frames: int, gradient_steps: int) -> None:
+        divergence(metrics, frame=frames, checkpoint=last_checkpoint())
         run.update(frames=frames, gradient_steps=gradient_steps, loggers=logger_states(loggers))
         checkpoint.save(checkpoint_path)
 
@@ -207,6 +224,8 @@ def main(cfg):  # noqa: F821
                 run["evals"].append((frames, metrics["eval/return"]))
                 if run["passed_teacher_at"] is None and metrics["eval/return"] > teacher_return:
                     run["passed_teacher_at"] = frames
+            if crossings(cfg.eval.video_every_frames, 0, before, frames):
+                log_video(loggers, render_env, actor, cfg, run_dir, frames)
         with timeit("log"):
             fps = (frames - start_frames) / max(time.time() - start, 1e-9)
             metrics.update({
@@ -215,6 +234,7 @@ def main(cfg):  # noqa: F821
                 "replay/size": len(replay), "alpha": alpha, "time/fps": fps,
             })
             if frames - last_log >= cfg.logger.log_every_frames or "eval/return" in metrics:
+                divergence(metrics, frame=frames, checkpoint=last_checkpoint())
                 log_metrics(loggers, {**metrics, **timeit.todict(prefix="time")}, frames)
                 metrics.pop("eval/return", None)
                 metrics.pop("alpha_switch_frame", None)

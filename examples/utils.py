@@ -52,12 +52,18 @@ _ACTIVATIONS = {"relu": nn.ReLU, "tanh": nn.Tanh, "elu": nn.ELU}
 
 # ----------------------------------------------------------------------------- config
 def check_config(cfg: DictConfig) -> None:
-    """Rejects invalid values before anything is built, naming the key and the fix."""
+    """Rejects invalid values before anything is built, naming the key and the fix.
+
+    Types and choices are the schema's (``config_schema.py``, enforced by Hydra); what is left
+    here is what a type cannot say: ranges, and rules across fields.
+    """
 
     def fail(key, value, why):
         raise ValueError(f"config {key}={value!r}: {why}")
 
     c, o, d = cfg.collector, cfg.optim, cfg.optim.discriminator
+    if cfg.algo.learner == "ppo" and cfg.algo.ppo is None:
+        fail("algo.ppo", None, "algo.learner=ppo needs the PPO settings (algo=gail has them)")
     for key, value, low in [
         ("collector.total_frames", c.total_frames, 1),
         ("collector.frames_per_batch", c.frames_per_batch, 1),
@@ -77,10 +83,11 @@ def check_config(cfg: DictConfig) -> None:
         ("optim.updates_per_train", o.updates_per_train, 0),
         ("optim.discriminator.steps", d.steps, 0),
         ("eval.every_frames", cfg.eval.every_frames, 0),
+        ("eval.video_every_frames", cfg.eval.video_every_frames, 0),
         ("checkpoint.every_frames", cfg.checkpoint.every_frames, 0),
     ]:
-        if not isinstance(value, int) or value < low:
-            fail(key, value, f"must be an integer >= {low}" + (" (0 disables)" if low == 0 else ""))
+        if value < low:
+            fail(key, value, f"must be >= {low}" + (" (0 disables)" if low == 0 else ""))
     for key, value, ok, why in [
         ("optim.lr", o.lr, o.lr > 0, "must be > 0"),
         ("optim.discriminator.lr", d.lr, d.lr > 0, "must be > 0"),
@@ -88,39 +95,32 @@ def check_config(cfg: DictConfig) -> None:
         ("optim.gamma", o.gamma, 0 < o.gamma <= 1, "must be in (0, 1]"),
         ("optim.tau", o.tau, 0 < o.tau <= 1, "must be in (0, 1]"),
         ("env.exploration_noise", cfg.env.exploration_noise, cfg.env.exploration_noise >= 0, "must be >= 0"),
-        ("algo.discriminator_agent_data", cfg.algo.discriminator_agent_data,
-         cfg.algo.discriminator_agent_data in ("replay", "recent"), "use replay | recent"),
-        ("algo.learner", cfg.algo.learner, cfg.algo.learner in ("td3", "sac", "bc", "ppo"), "use td3 | sac | bc | ppo"),
-        ("algo.reward.source", cfg.algo.reward.source, cfg.algo.reward.source in ("discriminator", "env", "shaped"),
-         "use discriminator | env | shaped"),
-        ("algo.reward.kind", cfg.algo.reward.kind, cfg.algo.reward.kind in ("gail", "airl"), "use gail | airl"),
         ("algo.rnd", cfg.algo.rnd, cfg.algo.rnd is None or (c.num_workers == 1 and c.backend in (None, "direct")),
          "the RND bonus keeps its statistics in the training env: use collector.num_workers=1 and "
          "collector.backend=null"),
         ("algo.absorbing_state", cfg.algo.absorbing_state, not (cfg.algo.absorbing_state and cfg.algo.adaptive),
          "absorbing states need a fixed teacher (algo.adaptive=false): promotion reads unrewritten trajectories"),
-        ("teacher.eviction", cfg.teacher.eviction, cfg.teacher.eviction in ("topk", "fifo"), "use topk | fifo"),
-        ("optim.implementation", o.implementation, o.implementation in ("fused", "loss"), "use fused | loss"),
-        ("optim.precision", o.precision, o.precision in ("fp32", "bf16"), "use fp32 | bf16"),
         ("optim.precision", o.precision, o.precision == "fp32" or (
             o.implementation == "fused" and cfg.algo.learner == "td3" and not cfg.algo.absorbing_state),
          "bf16 is TD3's fused step only: optim.implementation=fused, algo.learner=td3, and no absorbing "
          "states (DAC's actor runs the loss's own step)"),
-        ("collector.backend", c.backend, c.backend in (None, "direct", "process", "ray"),
-         "use null, direct, process or ray"),
         ("collector.backend", c.backend, c.backend != "direct" or c.num_workers == 1,
          f"direct runs one worker, but collector.num_workers={c.num_workers}"),
         ("collector.backend", c.backend, c.backend != "ray" or importlib.util.find_spec("ray") is not None,
          "the ray backend needs Ray: pip install ray"),
         ("resume", cfg.resume, cfg.resume in (True, False, "auto"), "use true, false or auto"),
+        ("collector.backend_options", c.backend_options, c.backend_options is None or isinstance(c.backend_options, DictConfig),
+         "must be a mapping (forwarded to TorchRL's Collector) or null"),
         ("device", cfg.device, cfg.device == "cpu" or torch.cuda.is_available(),
          "CUDA is not available on this machine; use device=cpu"),
     ]:
         if not ok:
             fail(key, value, why)
-    bad = set(cfg.logger.backends) - {"csv", "wandb", "tensorboard"}
-    if bad:
-        fail("logger.backends", list(cfg.logger.backends), f"unknown {sorted(bad)}; use csv, wandb, tensorboard")
+    if cfg.eval.video_every_frames and cfg.eval.video_format == "mp4" and importlib.util.find_spec("imageio_ffmpeg") is None:
+        fail("eval.video_format", "mp4", "MP4 videos need imageio-ffmpeg: pip install -e '.[video]' (or use gif)")
+    if cfg.eval.video_every_frames and "wandb" in cfg.logger.backends and importlib.util.find_spec("moviepy") is None:
+        fail("eval.video_every_frames", cfg.eval.video_every_frames,
+             "wandb encodes videos with moviepy: pip install -e '.[video]' (or drop wandb from logger.backends)")
     if "tensorboard" in cfg.logger.backends and importlib.util.find_spec("tensorboard") is None:
         fail("logger.backends", list(cfg.logger.backends),
              "the tensorboard backend needs the tensorboard package: pip install -e '.[tensorboard]'")
@@ -176,6 +176,14 @@ def make_collector(cfg: DictConfig, env, policy, *, frames: int):
         # One seed per worker (worker 0 gets seed, each next one the seed env.set_seed returns):
         # with one shared seed, all workers would replay the same episodes.
         collector.set_seed(cfg.seed + frames)
+    if backend == "ray":
+        if not hasattr(collector, "requested_frames_per_batch"):
+            # torchrl 0.14's RayCollector does not set it: len(collector) raises AttributeError.
+            collector.requested_frames_per_batch = cfg.collector.frames_per_batch
+        # First push now, before any batch: it connects TorchRL's RayWeightSyncScheme (a gloo
+        # group of the learner and the actors, 60 s rendezvous), so a failure stops the run
+        # before it trains. Later pushes (one per batch, in the loop) reuse the group.
+        collector.update_policy_weights_()
     return collector
 
 
@@ -189,11 +197,13 @@ def make_teacher(cfg: DictConfig, env, absorbing: AbsorbingStateTransform | None
     if cfg.teacher.path is None and not path.exists():
         raise FileNotFoundError(
             f"No teacher.path given and no shipped teacher for env {cfg.env.name!r} at {path}. Pass "
-            f"teacher.path=<file.npz|dataset folder> (e.g. the paper's ../shared/data/teachers/"
+            f"teacher.path=<file.npz|dataset folder|minari:<dataset id>> (e.g. the paper's ../shared/data/teachers/"
             f"expert_data_no_img_Hopper_scores_1500_episodes_1.npz for Hopper) or make one with "
             f"`python examples/make_teacher.py env={cfg.env.name}`."
         )
-    demos, meta = load_demonstrations(path, max_episode_steps=cfg.env.max_episode_steps)
+    # The env appends the time feature: a Minari dataset recorded without it gets it appended
+    # (exact), a .npz file must have it ("minari:<id>" survives Path: load_demonstrations reads it).
+    demos, meta = load_demonstrations(path, max_episode_steps=cfg.env.max_episode_steps, time_feature=True)
     # The buffer ranks trajectories by r_e = floor(0.1 R), the only reward the learner sees.
     demos = DelayedRewardTransform().forward(demos).select(*TRANSITION_KEYS)
     if absorbing is not None:
@@ -399,14 +409,22 @@ def make_update(cfg: DictConfig, loss, optimizers: dict, target_updater):
 
 # ----------------------------------------------------------------------------- evaluation
 @torch.no_grad()
-def evaluate(env, actor, episodes: int, max_steps: int) -> float:
-    """Mean dense return of deterministic episodes (reporting only; the learner never sees it)."""
-    returns = []
+def evaluate_episodes(env, actor, episodes: int, max_steps: int, *, keep_rollouts: bool = False) -> list[dict]:
+    """Deterministic episodes: the dense return, the delayed reward r_e and the length of each
+    (and its ``"rollout"`` with ``keep_rollouts``)."""
+    results = []
     with set_exploration_type(ExplorationType.DETERMINISTIC):
         for _ in range(episodes):
             rollout = env.rollout(max_steps, actor, break_when_any_done=True)
-            returns.append(float(rollout["next", "episode_return"][-1]))
-    return sum(returns) / len(returns)
+            results.append({"dense_return": float(rollout["next", "episode_return"][-1]),
+                            "delayed_reward": float(rollout["next", "reward"].sum()),
+                            "length": rollout.numel(), **({"rollout": rollout} if keep_rollouts else {})})
+    return results
+
+
+def evaluate(env, actor, episodes: int, max_steps: int) -> float:
+    """Mean dense return of deterministic episodes (reporting only; the learner never sees it)."""
+    return sum(e["dense_return"] for e in evaluate_episodes(env, actor, episodes, max_steps)) / episodes
 
 
 # ----------------------------------------------------------------------------- run folder
@@ -438,6 +456,8 @@ def resume_mode(cfg: DictConfig, run_dir: Path) -> bool | None:
     if checkpoint.exists() and not cfg.resume:
         raise FileExistsError(f"{run_dir} already holds a run (checkpoint/). Continue it with resume=true "
                               f"(or resume=auto), or choose another folder with hydra.run.dir=...")
+    if cfg.resume and checkpoint.exists():
+        summary.unlink(missing_ok=True)  # as with auto: unfinished until it ends
     return cfg.resume
 
 
@@ -448,10 +468,18 @@ def new_run(cfg: DictConfig) -> dict:
 
 
 def start_or_resume(checkpoint, run_dir: Path, cfg: DictConfig, run: dict, resuming: bool, *,
-                    truncate_logs: bool = True) -> None:
-    """Restores ``checkpoint`` from ``run_dir`` when ``resuming``, then writes the config the run goes on with."""
+                    optimizers=(), truncate_logs: bool = True) -> None:
+    """Restores ``checkpoint`` from ``run_dir`` when ``resuming``, then writes the config the run goes on with.
+
+    The ``optimizers`` keep the learning rates they were built with from the config: a run
+    continued with another ``optim.lr`` (e.g. after a divergence) uses it, not the saved one.
+    """
     if resuming:
+        configured = [[group["lr"] for group in optimizer.param_groups] for optimizer in optimizers]
         resume(checkpoint, run_dir / "checkpoint", cfg, run, truncate_logs=truncate_logs)
+        for optimizer, lrs in zip(optimizers, configured):
+            for group, lr in zip(optimizer.param_groups, lrs):
+                group["lr"] = lr
     OmegaConf.save(cfg, run_dir / "config.yaml", resolve=True)
 
 
@@ -504,7 +532,7 @@ def make_loggers(cfg: DictConfig, run_dir: Path, states: dict) -> dict:
             kwargs = {"wandb_kwargs": {
                 "offline": cfg.logger.wandb_mode == "offline",
                 "project": cfg.logger.project,
-                "config": OmegaConf.to_container(cfg, resolve=True),
+                "config": OmegaConf.to_container(cfg, resolve=True, enum_to_str=True),
             }}
         if backend in states:
             kwargs["state_dict"] = states[backend]  # e.g. wandb: log to the same run id
@@ -519,6 +547,8 @@ def logger_states(loggers: dict) -> dict:
 
 def log_metrics(loggers, metrics: dict, step: int) -> None:
     values = {k: float(v.detach()) if torch.is_tensor(v) else float(v) for k, v in metrics.items() if v is not None}
+    # Learned quantities reach here finite (DivergenceCheck runs first); what is dropped is
+    # bookkeeping, e.g. the promotion threshold, -inf until the window W_k holds a trajectory.
     metrics = {k: v for k, v in values.items() if math.isfinite(v)}
     for logger in loggers.values():
         logger.log_metrics(metrics, step)

@@ -7,7 +7,7 @@ import time
 
 import pytest
 import torch
-from example_runner import run, saved, scalar, start
+from example_runner import fail_in_process, run, saved, scalar, start
 
 from torchrl_sail import make_sail_env
 
@@ -135,7 +135,8 @@ def test_resume_after_kill_continues_the_same_curve(tmp_path, teacher_dir):
         (["env=Hopper-v4", "optim.gamma=1.5"], "optim.gamma=1.5"),
         (["env=Hopper-v4", "logger.backends=[csv,mlflowx]"], "mlflowx"),
         (["env=Hopper-v4", "env.name=Swimer-v4"], "Did you mean 'Swimmer-v4'"),
-        (["env=Hopper-v4", "collector.backend=spark"], "collector.backend='spark'"),
+        (["env=Hopper-v4", "collector.backend=spark"], "Invalid value 'spark', expected one of [direct, process, ray]\n"
+                                                        "    full_key: collector.backend"),
         (["env=Hopper-v4", "collector.backend=direct", "collector.num_workers=2"], "collector.num_workers=2"),
     ],
 )
@@ -143,10 +144,17 @@ def test_bad_input_fails_before_training(tmp_path, teacher_dir, overrides, messa
     overrides = [o.format(teachers=teacher_dir) for o in overrides]
     if not any(o.startswith("teacher.path") for o in overrides):
         overrides.append(f"teacher.path={teacher_dir / HOPPER}")
-    proc = run(tmp_path / "run", *overrides, "collector.total_frames=1000", check=False)
-    assert proc.returncode != 0
-    assert message in proc.stderr, proc.stderr[-2000:]
+    error = fail_in_process(tmp_path / "run", *overrides, "collector.total_frames=1000")
+    assert message in error, error
     assert not (tmp_path / "run" / "checkpoint").exists()
+
+
+def test_wrong_type_is_rejected_by_hydra_naming_the_key(tmp_path):
+    # the script as a user types it: `optim.lr=abc` once ended in a bare TypeError
+    proc = run(tmp_path / "run", "optim.lr=abc", check=False)
+    assert proc.returncode != 0
+    assert "Value 'abc' of type 'str' could not be converted to Float\n    full_key: optim.lr" in proc.stderr
+    assert not (tmp_path / "run").exists()
 
 
 def test_resume_with_other_env_is_refused(tmp_path, teacher_dir):

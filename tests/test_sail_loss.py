@@ -5,7 +5,6 @@ default batch form must be exactly TorchRL's TD3Loss."""
 from __future__ import annotations
 
 import argparse
-import math
 import warnings
 
 import pytest

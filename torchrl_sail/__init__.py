@@ -6,8 +6,10 @@ Every public name is importable from the top level, e.g.
 from torchrl_sail.data import (
     check_demonstration_dims,
     Demonstrations,
+    export_minari_dataset,
     FIFOTrajectoryWriter,
     load_demonstrations,
+    load_minari_demonstrations,
     load_sb_demonstrations,
     MixedReplayBuffer,
     save_demonstrations,
@@ -16,6 +18,7 @@ from torchrl_sail.data import (
     TrajectoryWriter,
     TRANSITION_KEYS,
 )
+from torchrl_sail.divergence import DivergenceCheck, DivergenceError
 from torchrl_sail.envs import (
     AbsorbingStateTransform,
     DelayedRewardTransform,
@@ -38,6 +41,8 @@ __all__ = [
     "DiscriminatorLoss",
     "DiscriminatorNet",
     "DiscriminatorReward",
+    "DivergenceCheck",
+    "DivergenceError",
     "FIFOTrajectoryWriter",
     "MixedReplayBuffer",
     "RNDReward",
@@ -50,7 +55,9 @@ __all__ = [
     "TopKTrajectoryWriter",
     "TrajectoryWriter",
     "check_demonstration_dims",
+    "export_minari_dataset",
     "load_demonstrations",
+    "load_minari_demonstrations",
     "load_sb_demonstrations",
     "make_sail_env",
     "save_demonstrations",

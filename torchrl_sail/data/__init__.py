@@ -1,4 +1,5 @@
-"""Data: the teacher buffer and its writers, teacher/agent batch mixing, demonstration files."""
+"""Data: the teacher buffer and its writers, teacher/agent batch mixing, demonstration files
+(the paper's ``.npz``, the project's folders, Minari datasets)."""
 from torchrl_sail.data.demonstrations import (
     check_demonstration_dims,
     Demonstrations,
@@ -7,6 +8,7 @@ from torchrl_sail.data.demonstrations import (
     save_demonstrations,
 )
 from torchrl_sail.data.keys import TRANSITION_KEYS
+from torchrl_sail.data.minari import export_minari_dataset, load_minari_demonstrations
 from torchrl_sail.data.mixed_buffer import MixedReplayBuffer
 from torchrl_sail.data.teacher_buffer import (
     FIFOTrajectoryWriter,
@@ -24,7 +26,9 @@ __all__ = [
     "TopKTrajectoryWriter",
     "TrajectoryWriter",
     "check_demonstration_dims",
+    "export_minari_dataset",
     "load_demonstrations",
+    "load_minari_demonstrations",
     "load_sb_demonstrations",
     "save_demonstrations",
 ]

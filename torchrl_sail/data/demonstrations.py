@@ -1,9 +1,10 @@
 """Teacher demonstrations: the paper's ``.npz`` files and the project's own directory format.
 
-Both loaders return a flat transition tensordict that follows the README's data conventions
-(``"observation"``, ``"action"``, ``("next", ...)`` entries with ``done = terminated |
-truncated``). Rewards stay *dense*: SAIL's delayed, trajectory-wise reward is produced after
-loading by :class:`~torchrl_sail.DelayedRewardTransform` (offline mode).
+Both loaders (and :mod:`torchrl_sail.data.minari`'s, for Minari datasets) return a flat
+transition tensordict that follows the README's data conventions (``"observation"``,
+``"action"``, ``("next", ...)`` entries with ``done = terminated | truncated``). Rewards stay
+*dense*: SAIL's delayed, trajectory-wise reward is produced after loading by
+:class:`~torchrl_sail.DelayedRewardTransform` (offline mode).
 """
 from __future__ import annotations
 
@@ -350,29 +351,39 @@ def load_demonstrations(
     path: str | os.PathLike,
     *,
     max_episode_steps: int = 1000,
+    time_feature: bool | None = None,
 ) -> Demonstrations:
-    """Loads a stable-baselines ``.npz`` file or a :func:`save_demonstrations` directory.
+    """Loads a stable-baselines ``.npz``, a :func:`save_demonstrations` directory, a Minari dataset.
 
-    A ``.npz`` file goes to :func:`load_sb_demonstrations`. A directory is read with
+    A ``.npz`` file goes to :func:`load_sb_demonstrations`; ``"minari:<dataset id>"`` or a
+    Minari dataset folder to :func:`~torchrl_sail.load_minari_demonstrations` (it needs the
+    optional ``minari`` package: ``pip install -e '.[minari]'``). A directory is read with
     :meth:`~tensordict.TensorDict.load_memmap` (pickled objects refused) into an ordinary
     in-memory tensordict, with its ``metadata.json``, and checked: flat ``[N]``, the
     ``TRANSITION_KEYS`` of :mod:`torchrl_sail.data.keys`, bool ``[N, 1]`` flags with
     ``done == terminated | truncated``, and a done last row (complete episodes only).
 
     Args:
-        path: a ``.npz`` file or a directory written by :func:`save_demonstrations`.
+        path: a ``.npz`` file, a directory written by :func:`save_demonstrations`, or a
+            Minari dataset: ``"minari:<dataset id>"`` (looked up under
+            ``MINARI_DATASETS_PATH``, default ``~/.minari/datasets``) or its folder.
 
     Keyword Args:
-        max_episode_steps (int): passed to :func:`load_sb_demonstrations`; unused for
-            directories. Defaults to ``1000``.
+        max_episode_steps (int): passed to :func:`load_sb_demonstrations` and
+            :func:`~torchrl_sail.load_minari_demonstrations`; unused for directories.
+            Defaults to ``1000``.
+        time_feature (bool, optional): passed to the same two loaders (``None`` detects the
+            column, ``True`` requires it of a ``.npz`` file and appends it to a Minari dataset
+            recorded without it); unused for directories. Defaults to ``None``.
 
     Returns:
         Demonstrations: ``(data, metadata)``.
 
     Raises:
-        FileNotFoundError: ``path`` does not exist.
-        ValueError: ``path`` is neither form, or its content is invalid; the message names
-            the file and the problem.
+        FileNotFoundError: ``path`` does not exist (or no such local Minari dataset).
+        ImportError: a Minari dataset, but ``minari`` is not installed.
+        ValueError: ``path`` is none of these forms, or its content is invalid; the message
+            names the file and the problem.
 
     Examples:
         >>> import os, tempfile
@@ -385,13 +396,25 @@ def load_demonstrations(
         ...     print("a directory written by save_demonstrations" in str(err))
         True
     """
+    # (the module imports minari lazily: it stays an optional dependency)
+    from torchrl_sail.data.minari import is_minari_dataset, load_minari_demonstrations, MINARI_PREFIX
+
+    by_id = os.fspath(path).startswith(MINARI_PREFIX)  # also from a Path("minari:<id>")
+    if by_id or is_minari_dataset(path):
+        return load_minari_demonstrations(
+            os.fspath(path) if by_id else path, max_episode_steps=max_episode_steps,
+            time_feature=time_feature,
+        )
     path = Path(path)
     if path.suffix == ".npz" and path.is_file():
-        return load_sb_demonstrations(path, max_episode_steps=max_episode_steps)
+        return load_sb_demonstrations(
+            path, max_episode_steps=max_episode_steps, time_feature=time_feature
+        )
     if not (path / METADATA_FILE).is_file():
         raise (ValueError if path.exists() else FileNotFoundError)(
             f"{path}: not demonstrations; expected a stable-baselines ExpertDataset '.npz' "
-            f"file or a directory written by save_demonstrations (with {METADATA_FILE})."
+            f"file, a directory written by save_demonstrations (with {METADATA_FILE}), or a "
+            f"Minari dataset ('minari:<dataset id>' or its folder)."
         )
     data = TensorDict.load_memmap(path, allow_pickle=False).to_tensordict()
     _check_transitions(data, str(path))

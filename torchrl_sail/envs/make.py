@@ -9,7 +9,9 @@ from __future__ import annotations
 import difflib
 
 import gymnasium as gym
+import numpy as np
 from torchrl.envs import Compose, DoubleToFloat, GymEnv, InitTracker, StepCounter, TransformedEnv
+from torchrl.record.recorder import PixelRenderTransform
 
 from torchrl_sail.envs.absorbing import AbsorbingStateTransform
 from torchrl_sail.envs.delayed_reward import DelayedRewardTransform
@@ -38,6 +40,7 @@ def make_sail_env(
     reward_scale: float = 0.1,
     rounding: str = "floor",
     absorbing_state: bool = False,
+    render_size: tuple[int, int] | None = None,
     device: str = "cpu",
 ) -> TransformedEnv:
     """Builds ``GymEnv(env_name)`` with the SAIL transforms.
@@ -65,6 +68,10 @@ def make_sail_env(
         absorbing_state (bool, optional): append DAC's absorbing-state indicator to the
             observation (:class:`~torchrl_sail.AbsorbingStateTransform`, last in the stack).
             Defaults to ``False``.
+        render_size (tuple of int, optional): ``(width, height)``: render every reset and step
+            offscreen into ``"pixels"`` (uint8 ``[H, W, 3]``) with TorchRL's
+            ``PixelRenderTransform``, for videos. MuJoCo needs a GL backend (``MUJOCO_GL=egl``
+            on machines without a display). Defaults to ``None`` (no rendering).
         device (str, optional): device of the env outputs. Defaults to ``"cpu"``.
 
     Raises:
@@ -85,4 +92,10 @@ def make_sail_env(
         transforms.append(DelayedRewardTransform(reward_scale, rounding=rounding))
     if absorbing_state:
         transforms.append(AbsorbingStateTransform())
-    return TransformedEnv(GymEnv(env_name, device=device), Compose(*transforms))
+    if render_size is None:
+        return TransformedEnv(GymEnv(env_name, device=device), Compose(*transforms))
+    width, height = render_size
+    # MuJoCo returns a vertically flipped view (negative strides): copy it into a plain array
+    transforms.append(PixelRenderTransform(out_keys=["pixels"], preproc=np.ascontiguousarray))
+    return TransformedEnv(GymEnv(env_name, device=device, render_mode="rgb_array", width=width, height=height),
+                          Compose(*transforms))

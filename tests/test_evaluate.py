@@ -1,0 +1,120 @@
+"""examples/evaluate.py and videos: a run's checkpoint evaluated, a video written and decoded."""
+from __future__ import annotations
+
+import ctypes.util
+import json
+import math
+import os
+import subprocess
+import sys
+
+import pytest
+from example_runner import REPO, run
+
+imageio = pytest.importorskip("imageio.v3", reason="videos need imageio (pip install -e '.[video]')")
+pytest.importorskip("imageio_ffmpeg", reason="MP4 videos need imageio-ffmpeg (pip install -e '.[video]')")
+
+EGL = {"MUJOCO_GL": "egl"}
+
+
+def evaluate(*overrides: str, env: dict | None = None, check: bool = True) -> subprocess.CompletedProcess:
+    proc = subprocess.run([sys.executable, str(REPO / "examples" / "evaluate.py"), *overrides], capture_output=True,
+                          text=True, cwd=REPO, timeout=600, env={**os.environ, **EGL, **(env or {})})
+    if check and proc.returncode != 0:
+        raise AssertionError(f"evaluate.py failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-5000:]}")
+    return proc
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    """2000 frames of SAIL on Hopper with the shipped teacher: one evaluation and one video, at the end."""
+    run_dir = tmp_path_factory.mktemp("evaluate") / "run"
+    run(run_dir, "env=Hopper-v4", "collector.total_frames=2000", "collector.init_random_frames=1000",
+        "optim.updates_per_train=50", "optim.discriminator.steps=2", "eval.every_frames=2000", "eval.episodes=2",
+        "eval.video_every_frames=2000", "logger.backends=[csv]", env=EGL)
+    return run_dir
+
+
+def test_training_records_a_video(trained):
+    frames = imageio.imread(trained / "videos" / "eval_2000.mp4", plugin="FFMPEG")
+    assert frames.shape[1:] == (240, 320, 3) and len(frames) >= 2  # the reset frame and >= 1 step
+    assert frames.std() > 5  # a rendered scene, not a blank image
+
+
+def test_evaluate_reproduces_the_runs_own_evaluation(trained):
+    """On the training eval env's seed (run seed + 10000) the checkpoint's actor gives the logged eval return."""
+    summary = json.loads((trained / "summary.json").read_text())
+    proc = evaluate(f"run_dir={trained}", "episodes=2", "seed=10000", "out=" + str(trained / "same_seed.json"))
+    result = json.loads((trained / "same_seed.json").read_text())
+    assert result["dense_return"]["mean"] == pytest.approx(summary["final_eval_return"], rel=1e-6)
+    assert result["checkpoint_frames"] == 2000 and result["episodes"] == 2 and result["seed"] == 10000
+    assert "dense return" in proc.stdout and "delayed reward r_e" in proc.stdout
+
+
+def test_evaluate_writes_stats_and_a_video_that_decodes(trained):
+    proc = evaluate(f"run_dir={trained}", "episodes=3", "video=true")
+    result = json.loads((trained / "evaluation.json").read_text())
+    assert result["seed"] == 20_000 and result["env"] == "Hopper-v4" and result["algo"] == "sail"
+    for key in ("dense_return", "delayed_reward", "length"):
+        s = result[key]
+        assert len(s["values"]) == 3 and s["min"] <= s["mean"] <= s["max"]
+    # r_e = floor(0.1 * dense return), the delayed reward the learner sees
+    assert result["delayed_reward"]["values"] == [math.floor(0.1 * r) for r in result["dense_return"]["values"]]
+    video = result["video"]
+    frames = imageio.imread(trained / "evaluation.mp4", plugin="FFMPEG")
+    # the first episode replayed on the rendering env: its reset frame and one frame per step
+    assert len(frames) == video["frames"] == result["length"]["values"][0] + 1
+    assert video["dense_return"] == pytest.approx(result["dense_return"]["values"][0], rel=1e-6)
+    assert video["fps"] == 125 and "evaluation.mp4" in proc.stdout
+
+
+def test_evaluate_gif(trained, tmp_path):
+    evaluate(f"run_dir={trained}", "episodes=1", "video=true", "video_format=gif", "video_size=[160,120]",
+             f"out={tmp_path / 'eval.json'}")
+    result = json.loads((tmp_path / "eval.json").read_text())
+    frames = imageio.imread(tmp_path / "eval.gif", index=None)
+    assert frames.shape == (result["length"]["values"][0] + 1, 120, 160, 3)
+
+
+@pytest.mark.skipif(ctypes.util.find_library("OSMesa") is not None, reason="OSMesa is installed here")
+def test_missing_gl_library_names_the_variable_and_the_package(trained, tmp_path):
+    # MuJoCo loads the MUJOCO_GL backend on import (TorchRL imports MuJoCo): checked before that
+    proc = evaluate(f"run_dir={trained}", "episodes=1", f"out={tmp_path / 'e.json'}",
+                    env={"MUJOCO_GL": "osmesa"}, check=False)
+    assert proc.returncode != 0 and "MuJoCo cannot load MUJOCO_GL='osmesa'" in proc.stderr
+    assert "apt-get install libosmesa6" in proc.stderr and "MUJOCO_GL=egl" in proc.stderr
+    assert not (tmp_path / "e.json").exists()
+
+
+@pytest.mark.skipif(bool(os.environ.get("DISPLAY")), reason="a display is available: glfw can render")
+def test_unusable_gl_backend_fails_before_anything_is_written(trained, tmp_path):
+    proc = evaluate(f"run_dir={trained}", "episodes=1", "video=true", f"out={tmp_path / 'e.json'}",
+                    env={"MUJOCO_GL": "glfw"}, check=False)
+    assert proc.returncode != 0 and "Cannot render Hopper-v4 with MUJOCO_GL='glfw'" in proc.stderr
+    assert "apt-get install libegl1" in proc.stderr
+    assert not (tmp_path / "e.json").exists()  # nothing half-written
+
+
+def test_evaluate_bad_run_dir(tmp_path):
+    proc = evaluate(f"run_dir={tmp_path}", check=False)
+    assert proc.returncode != 0 and f"run_dir={tmp_path}: no config.yaml" in proc.stderr
+    (tmp_path / "config.yaml").write_text("seed: 0\n")
+    proc = evaluate(f"run_dir={tmp_path}", check=False)
+    assert proc.returncode != 0 and "no checkpoint/ to evaluate" in proc.stderr
+
+
+def test_evaluate_exports_the_agents_episodes_to_minari(trained, tmp_path):
+    pytest.importorskip("minari", reason="Minari export needs pip install -e '.[minari]'")
+    from torchrl_sail import load_demonstrations
+
+    datasets = {"MINARI_DATASETS_PATH": str(tmp_path / "datasets")}
+    evaluate(f"run_dir={trained}", "episodes=2", "export=sail/Hopper-v4/agent-v0", f"out={tmp_path / 'e.json'}",
+             env=datasets)
+    result = json.loads((tmp_path / "e.json").read_text())
+    data, meta = load_demonstrations(tmp_path / "datasets" / "sail" / "Hopper-v4" / "agent-v0")
+    # dense rewards recovered from the running return: the episodes' returns, exactly as evaluated
+    assert meta["episode_returns"] == pytest.approx(result["dense_return"]["values"], rel=1e-9)
+    assert data.numel() == sum(result["length"]["values"]) and data["observation"].shape[-1] == 12
+    proc = evaluate(f"run_dir={trained}", "episodes=1", "export=sail/Hopper-v4/agent-v0", f"out={tmp_path / 'f.json'}",
+                    env=datasets, check=False)
+    assert proc.returncode != 0 and "overwrite" in proc.stderr  # an existing dataset is kept
