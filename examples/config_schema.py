@@ -224,6 +224,7 @@ class EvaluateConfig:
     out: Optional[str] = None
     export: Optional[str] = None
     overwrite: bool = False
+    device: Optional[str] = None
     threads: int = 1
 
 

@@ -19,6 +19,7 @@ from mujoco_gl import check_mujoco_gl
 
 check_mujoco_gl()  # before TorchRL imports MuJoCo, which loads the MUJOCO_GL backend on import
 
+import importlib.util
 import json
 import statistics
 from pathlib import Path
@@ -79,6 +80,23 @@ def episode_transitions(rollout, absorbing_state: bool):
     return data
 
 
+def check_args(args) -> None:
+    """Everything that can fail is checked before the first episode."""
+    if args.episodes < 1:
+        raise ValueError(f"episodes={args.episodes}: must be >= 1")
+    if args.video:
+        if len(args.video_size) != 2 or min(args.video_size) < 16:
+            raise ValueError(f"video_size={list(args.video_size)}: must be [width, height], each >= 16")
+        if args.video_format == "mp4" and importlib.util.find_spec("imageio_ffmpeg") is None:
+            raise ImportError("video_format=mp4 needs imageio-ffmpeg: pip install -e '.[video]' (or video_format=gif)")
+    if args.export:
+        from torchrl_sail.data.minari import minari_datasets_root
+
+        if (minari_datasets_root() / args.export).exists() and not args.overwrite:
+            raise FileExistsError(f"export={args.export}: a Minari dataset of that id exists under "
+                                  f"{minari_datasets_root()}; pass overwrite=true or another id")
+
+
 def stats(values: list[float]) -> dict:
     return {"mean": statistics.fmean(values), "std": statistics.pstdev(values), "min": min(values),
             "max": max(values), "values": values}
@@ -89,10 +107,11 @@ def main(args):  # noqa: F821
     torch.set_num_threads(args.threads)
     run_dir = Path(args.run_dir)
     cfg, run = load_run(run_dir)
+    if args.device is not None:
+        cfg.device = args.device
     seed = cfg.seed + 20_000 if args.seed is None else args.seed
     out = Path(args.out) if args.out else run_dir / "evaluation.json"
-    if args.episodes < 1:
-        raise ValueError(f"episodes={args.episodes}: must be >= 1")
+    check_args(args)
     seed_everything(seed)
     env = make_env(cfg, seed)
     actor = load_actor(cfg, env, run_dir / "checkpoint")

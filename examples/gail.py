@@ -128,6 +128,7 @@ def run_gail(cfg, run_dir: Path, resuming: bool) -> None:
                 optimizers["ppo"].zero_grad(set_to_none=True)
                 run["gradient_steps"] += 1
         metrics.update({f"ppo/{key}": out[key].detach() for key in ("loss_objective", "loss_critic", "entropy")})
+        check(metrics, frames)  # NaN/inf stops the run before it is evaluated, logged or saved
 
         if crossings(cfg.eval.every_frames, 0, before, frames):
             metrics["eval/return"] = evaluate(eval_env, actor, cfg.eval.episodes, cfg.env.max_episode_steps)
@@ -137,7 +138,6 @@ def run_gail(cfg, run_dir: Path, resuming: bool) -> None:
         if crossings(cfg.eval.video_every_frames, 0, before, frames):
             log_video(loggers, render_env, actor, cfg, run_dir, frames)
         metrics["time/fps"] = (frames - start_frames) / max(time.time() - start, 1e-9)
-        check(metrics, frames)
         log_metrics(loggers, metrics, frames)
         pbar.update(data.numel())
         if crossings(cfg.checkpoint.every_frames, 0, before, frames):

@@ -160,94 +160,101 @@ def main(cfg):  # noqa: F821
     pbar = tqdm.tqdm(total=cfg.collector.total_frames, initial=frames, unit="frames")
     start, start_frames, last_log, metrics = time.time(), frames, frames, {}
     train_clock = None  # (time, frames) when warm-up ended: the start of the timed part
-    collector_iter = iter(collector)
-    for _ in range(len(collector) if collector.total_frames else 0):  # 0 frames left: a finished run
-        if train_clock is None and frames >= warmup:
-            timeit.erase()
-            train_clock = (time.time(), frames)
-        with timeit("collect"):
-            data = next(collector_iter)
-        before, frames = frames, frames + data.numel()
-        with timeit("replay_extend"):
-            flat = data.reshape(-1)
-            stored = flat.select(*TRANSITION_KEYS)
-            if absorbing is not None:
-                stored = absorbing.add_absorbing_transitions(stored)
-            replay.extend(stored)
-            if recent is not replay:
-                recent.extend(stored)
-        # Algorithm 1: every finished trajectory with r_e > C joins the teacher buffer.
-        with timeit("teacher_extend"):
-            if cfg.algo.adaptive:
-                teacher.extend(data)
-        alpha_before = alpha_scheduler.alpha
-        alpha = alpha_scheduler.step(frames=frames, num_promoted=teacher.writer.num_promoted)
-        if alpha != alpha_before:
-            metrics["alpha_switch_frame"] = frames
-        done = flat["next", "done"].squeeze(-1)
-        if done.any():
-            metrics["train/dense_return"] = flat["next", "episode_return"][done].mean()
-            metrics["train/delayed_reward"] = flat["next", "reward"][done].mean()
-            metrics["train/episode_length"] = flat["step_count"][done].float().mean() + 1
-        if rnd is not None:
-            metrics["train/intrinsic_reward"] = flat["next", "intrinsic_reward"].mean()
+    try:
+        collector_iter = iter(collector)
+        for _ in range(len(collector) if collector.total_frames else 0):  # 0 frames left: a finished run
+            if train_clock is None and frames >= warmup:
+                timeit.erase()
+                train_clock = (time.time(), frames)
+            with timeit("collect"):
+                data = next(collector_iter)
+            before, frames = frames, frames + data.numel()
+            with timeit("replay_extend"):
+                flat = data.reshape(-1)
+                stored = flat.select(*TRANSITION_KEYS)
+                if absorbing is not None:
+                    stored = absorbing.add_absorbing_transitions(stored)
+                replay.extend(stored)
+                if recent is not replay:
+                    recent.extend(stored)
+            # Algorithm 1: every finished trajectory with r_e > C joins the teacher buffer.
+            with timeit("teacher_extend"):
+                if cfg.algo.adaptive:
+                    teacher.extend(data)
+            alpha_before = alpha_scheduler.alpha
+            alpha = alpha_scheduler.step(frames=frames, num_promoted=teacher.writer.num_promoted)
+            if alpha != alpha_before:
+                metrics["alpha_switch_frame"] = frames
+            done = flat["next", "done"].squeeze(-1)
+            if done.any():
+                metrics["train/dense_return"] = flat["next", "episode_return"][done].mean()
+                metrics["train/delayed_reward"] = flat["next", "reward"][done].mean()
+                metrics["train/episode_length"] = flat["step_count"][done].float().mean() + 1
+            if rnd is not None:
+                metrics["train/intrinsic_reward"] = flat["next", "intrinsic_reward"].mean()
 
-        # The authors' order at a shared frame: the TD3 block, then the D block. Neither the
-        # buffers nor D change inside a block, so its batches are drawn (and rewarded by the
-        # current D) in one call.
-        num_updates = crossings(o.train_every_frames, warmup, before, frames) * o.updates_per_train
-        if num_updates:
-            with timeit("sample"), reduced_precision:  # the D reward too, with precision=bf16
-                block = sail_batches.sample(o.batch_size, teacher_fraction=alpha, num_batches=num_updates)
-            metrics["sail/d_reward_mean" if uses_discriminator else "sail/env_reward_mean"] = block["next", "reward"].mean()
-            last = {}
-            for batch in block.unbind(0):
-                gradient_steps += 1
-                with timeit("update"):
-                    last.update(update(batch, update_actor=gradient_steps % o.policy_delay == 0))
-            metrics.update({f"sail/{key}": value for key, value in last.items()})
-        num_d_steps = crossings(d.every_frames, warmup, before, frames) * d.steps if uses_discriminator else 0
-        if num_d_steps:
-            with timeit("sample"):
-                d_block = d_batches.sample(2 * d.batch_size, teacher_fraction=0.5, num_batches=num_d_steps)
-            for batch in d_block.unbind(0):
-                with timeit("discriminator"):
-                    metrics.update(discriminator_update(batch))
-                    if rnd is not None:
-                        metrics.update(rnd_update(batch))
-        # Worker processes or Ray actors act with a copy of the policy.
-        collector.update_policy_weights_()
-
-        with timeit("eval"):
-            if crossings(cfg.eval.every_frames, 0, before, frames):
-                metrics["eval/return"] = evaluate(eval_env, actor, cfg.eval.episodes, cfg.env.max_episode_steps)
-                run["evals"].append((frames, metrics["eval/return"]))
-                if run["passed_teacher_at"] is None and metrics["eval/return"] > teacher_return:
-                    run["passed_teacher_at"] = frames
-            if crossings(cfg.eval.video_every_frames, 0, before, frames):
-                log_video(loggers, render_env, actor, cfg, run_dir, frames)
-        with timeit("log"):
-            fps = (frames - start_frames) / max(time.time() - start, 1e-9)
-            metrics.update({
-                "teacher/threshold": teacher.writer.threshold, "teacher/num_promoted": teacher.writer.num_promoted,
-                "teacher/num_trajectories": teacher.writer.num_trajectories, "teacher/size": len(teacher),
-                "replay/size": len(replay), "alpha": alpha, "time/fps": fps,
-            })
-            if frames - last_log >= cfg.logger.log_every_frames or "eval/return" in metrics:
+            # The authors' order at a shared frame: the TD3 block, then the D block. Neither the
+            # buffers nor D change inside a block, so its batches are drawn (and rewarded by the
+            # current D) in one call.
+            num_updates = crossings(o.train_every_frames, warmup, before, frames) * o.updates_per_train
+            if num_updates:
+                with timeit("sample"), reduced_precision:  # the D reward too, with precision=bf16
+                    block = sail_batches.sample(o.batch_size, teacher_fraction=alpha, num_batches=num_updates)
+                metrics["sail/d_reward_mean" if uses_discriminator else "sail/env_reward_mean"] = block["next", "reward"].mean()
+                last = {}
+                for batch in block.unbind(0):
+                    gradient_steps += 1
+                    with timeit("update"):
+                        last.update(update(batch, update_actor=gradient_steps % o.policy_delay == 0))
+                metrics.update({f"sail/{key}": value for key, value in last.items()})
+            num_d_steps = crossings(d.every_frames, warmup, before, frames) * d.steps if uses_discriminator else 0
+            if num_d_steps:
+                with timeit("sample"):
+                    d_block = d_batches.sample(2 * d.batch_size, teacher_fraction=0.5, num_batches=num_d_steps)
+                for batch in d_block.unbind(0):
+                    with timeit("discriminator"):
+                        metrics.update(discriminator_update(batch))
+                        if rnd is not None:
+                            metrics.update(rnd_update(batch))
+            # NaN/inf stops the run here, at the logging cadence (and before any checkpoint), before
+            # the weights reach the workers, an evaluation or a log.
+            log_now = (frames - last_log >= cfg.logger.log_every_frames
+                       or crossings(cfg.eval.every_frames, 0, before, frames))
+            if log_now or crossings(cfg.checkpoint.every_frames, 0, before, frames):
                 divergence(metrics, frame=frames, checkpoint=last_checkpoint())
-                log_metrics(loggers, {**metrics, **timeit.todict(prefix="time")}, frames)
-                metrics.pop("eval/return", None)
-                metrics.pop("alpha_switch_frame", None)
-                last_log = frames
-            pbar.update(data.numel())
-            pbar.set_postfix(ret=f"{float(metrics.get('train/dense_return', float('nan'))):.0f}",
-                             eval=f"{run['evals'][-1][1]:.0f}" if run["evals"] else "-",
-                             C=f"{teacher.writer.threshold:.0f}", alpha=f"{alpha:.2f}", fps=f"{fps:.0f}")
-        with timeit("checkpoint"):
-            if crossings(cfg.checkpoint.every_frames, 0, before, frames):
-                save(frames, gradient_steps)
-    collector.shutdown()
-    pbar.close()
+            # Worker processes or Ray actors act with a copy of the policy.
+            collector.update_policy_weights_()
+
+            with timeit("eval"):
+                if crossings(cfg.eval.every_frames, 0, before, frames):
+                    metrics["eval/return"] = evaluate(eval_env, actor, cfg.eval.episodes, cfg.env.max_episode_steps)
+                    run["evals"].append((frames, metrics["eval/return"]))
+                    if run["passed_teacher_at"] is None and metrics["eval/return"] > teacher_return:
+                        run["passed_teacher_at"] = frames
+                if crossings(cfg.eval.video_every_frames, 0, before, frames):
+                    log_video(loggers, render_env, actor, cfg, run_dir, frames)
+            with timeit("log"):
+                fps = (frames - start_frames) / max(time.time() - start, 1e-9)
+                metrics.update({
+                    "teacher/threshold": teacher.writer.threshold, "teacher/num_promoted": teacher.writer.num_promoted,
+                    "teacher/num_trajectories": teacher.writer.num_trajectories, "teacher/size": len(teacher),
+                    "replay/size": len(replay), "alpha": alpha, "time/fps": fps,
+                })
+                if log_now:
+                    log_metrics(loggers, {**metrics, **timeit.todict(prefix="time")}, frames)
+                    metrics.pop("eval/return", None)
+                    metrics.pop("alpha_switch_frame", None)
+                    last_log = frames
+                pbar.update(data.numel())
+                pbar.set_postfix(ret=f"{float(metrics.get('train/dense_return', float('nan'))):.0f}",
+                                 eval=f"{run['evals'][-1][1]:.0f}" if run["evals"] else "-",
+                                 C=f"{teacher.writer.threshold:.0f}", alpha=f"{alpha:.2f}", fps=f"{fps:.0f}")
+            with timeit("checkpoint"):
+                if crossings(cfg.checkpoint.every_frames, 0, before, frames):
+                    save(frames, gradient_steps)
+    finally:  # also on a DivergenceError: worker processes and Ray actors end with the run
+        collector.shutdown()
+        pbar.close()
     end = time.time()
     save(frames, gradient_steps)
 

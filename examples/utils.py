@@ -116,6 +116,8 @@ def check_config(cfg: DictConfig) -> None:
     ]:
         if not ok:
             fail(key, value, why)
+    if len(cfg.eval.video_size) != 2 or min(cfg.eval.video_size) < 16:
+        fail("eval.video_size", list(cfg.eval.video_size), "must be [width, height], each >= 16")
     if cfg.eval.video_every_frames and cfg.eval.video_format == "mp4" and importlib.util.find_spec("imageio_ffmpeg") is None:
         fail("eval.video_format", "mp4", "MP4 videos need imageio-ffmpeg: pip install -e '.[video]' (or use gif)")
     if cfg.eval.video_every_frames and "wandb" in cfg.logger.backends and importlib.util.find_spec("moviepy") is None:
@@ -153,7 +155,7 @@ def make_env(cfg: DictConfig, seed: int):
 
 def make_collector(cfg: DictConfig, env, policy, *, frames: int):
     """TorchRL's ``Collector`` for what is left of the budget after ``frames`` (0 on a fresh run)."""
-    backend = cfg.collector.backend or ("process" if cfg.collector.num_workers > 1 else "direct")
+    backend = str(cfg.collector.backend or ("process" if cfg.collector.num_workers > 1 else "direct"))
     # One env in this process: trajectory ids are not needed (episode ends are the done flags).
     kwargs = {"track_traj_ids": False}
     if backend != "direct":
@@ -448,16 +450,12 @@ def resume_mode(cfg: DictConfig, run_dir: Path) -> bool | None:
                     f"{run_dir} holds a finished {done.get('frames')}-frame run but no checkpoint to extend it to "
                     f"collector.total_frames={cfg.collector.total_frames}; choose another folder.")
         if checkpoint.exists():
-            # until it ends, a continued run is unfinished: no summary of its earlier budget stays
-            summary.unlink(missing_ok=True)
             return True
         shutil.rmtree(run_dir / "logs", ignore_errors=True)
         return False
     if checkpoint.exists() and not cfg.resume:
         raise FileExistsError(f"{run_dir} already holds a run (checkpoint/). Continue it with resume=true "
                               f"(or resume=auto), or choose another folder with hydra.run.dir=...")
-    if cfg.resume and checkpoint.exists():
-        summary.unlink(missing_ok=True)  # as with auto: unfinished until it ends
     return cfg.resume
 
 
@@ -471,8 +469,9 @@ def start_or_resume(checkpoint, run_dir: Path, cfg: DictConfig, run: dict, resum
                     optimizers=(), truncate_logs: bool = True) -> None:
     """Restores ``checkpoint`` from ``run_dir`` when ``resuming``, then writes the config the run goes on with.
 
-    The ``optimizers`` keep the learning rates they were built with from the config: a run
-    continued with another ``optim.lr`` (e.g. after a divergence) uses it, not the saved one.
+    Only a resume that passed its checks drops the run's old ``summary.json``. The ``optimizers``
+    keep the learning rates they were built with from the config: a run continued with another
+    ``optim.lr`` (e.g. after a divergence) uses it, not the saved one.
     """
     if resuming:
         configured = [[group["lr"] for group in optimizer.param_groups] for optimizer in optimizers]
@@ -480,6 +479,8 @@ def start_or_resume(checkpoint, run_dir: Path, cfg: DictConfig, run: dict, resum
         for optimizer, lrs in zip(optimizers, configured):
             for group, lr in zip(optimizer.param_groups, lrs):
                 group["lr"] = lr
+        if truncate_logs:  # a continued run is unfinished until it ends: no summary of its earlier budget
+            (run_dir / "summary.json").unlink(missing_ok=True)
     OmegaConf.save(cfg, run_dir / "config.yaml", resolve=True)
 
 

@@ -76,5 +76,5 @@ def log_video(loggers: dict, env, actor, cfg, run_dir: Path, frames: int) -> Pat
     path = write_video(pixels, run_dir / "videos" / f"eval_{frames}.{cfg.eval.video_format}", fps)
     if "wandb" in loggers:  # TorchRL's WandbLogger takes [B, T, C, H, W] and encodes it (moviepy) into the run
         video = torch.from_numpy(pixels).permute(0, 3, 1, 2).unsqueeze(0)
-        loggers["wandb"].log_video("eval/video", video, step=frames, fps=fps, format=cfg.eval.video_format)
+        loggers["wandb"].log_video("eval/video", video, step=frames, fps=fps, format=str(cfg.eval.video_format))
     return path

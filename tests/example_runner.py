@@ -39,6 +39,16 @@ def run(run_dir: Path, *overrides: str, check: bool = True, multirun: bool = Fal
     return proc
 
 
+def evaluate(*overrides: str, env: dict | None = None, check: bool = True) -> subprocess.CompletedProcess:
+    """``python examples/evaluate.py <overrides>`` (``MUJOCO_GL=egl`` unless ``env`` says otherwise)."""
+    env = {**os.environ, "MUJOCO_GL": "egl", **(env or {})}
+    proc = subprocess.run([sys.executable, str(SCRIPT.parent / "evaluate.py"), *overrides], capture_output=True,
+                          text=True, cwd=REPO, timeout=600, env=env)
+    if check and proc.returncode != 0:
+        raise AssertionError(f"evaluate.py failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-5000:]}")
+    return proc
+
+
 def scalar(run_dir: Path, tag: str) -> list[tuple[int, float]]:
     """(frames, value) rows of one scalar written by TorchRL's CSV logger."""
     path = run_dir / "logs" / "scalars" / f"{tag}.csv"

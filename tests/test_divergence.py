@@ -20,7 +20,22 @@ def test_finite_passes_and_bookkeeping_is_not_checked():
     check = DivergenceCheck(nets())
     # Python numbers are bookkeeping (the threshold is -inf until W_k fills): not checked
     assert check({"sail/loss_qvalue": torch.tensor(0.3), "teacher/threshold": float("-inf")}, frame=1000) is None
-    assert len(check.tensors) == 4 + 2 + 2  # 2 linears' weights and biases, BN weight/bias, running mean/var
+    assert len(check.named_tensors()) == 4 + 2 + 2  # 2 linears' weights and biases, BN weight/bias, running mean/var
+
+
+def test_large_finite_values_pass_and_later_state_is_checked():
+    modules = nets()
+    check = DivergenceCheck(modules)
+    with torch.no_grad():
+        modules["critic"][0].weight.fill_(1e20)  # finite (a norm would overflow float32 here)
+    check({}, frame=1)
+    DivergenceCheck({})({}, frame=1)  # nothing to check
+    DivergenceCheck({})({"loss": torch.tensor(1.0, dtype=torch.float64)}, frame=1)
+    # state registered after the check was built (RND's statistics appear at the env's first step)
+    modules["norm"].register_buffer("late", torch.tensor([float("inf")]))
+    with pytest.raises(DivergenceError) as err:
+        check({}, frame=2)
+    assert err.value.quantities == ["norm.late"]
 
 
 def test_nan_loss_is_named_with_the_frame():
@@ -34,7 +49,7 @@ def test_nan_loss_is_named_with_the_frame():
                                          ("norm.running_var", float("nan"))])
 def test_non_finite_parameter_or_buffer_is_named(name, value):
     modules = nets()
-    check = DivergenceCheck(modules)  # collected once: the in-place write below is seen
+    check = DivergenceCheck(modules)
     with torch.no_grad():
         dict([*modules[name.split(".")[0]].named_parameters(prefix=name.split(".")[0]),
               *modules[name.split(".")[0]].named_buffers(prefix=name.split(".")[0])])[name].view(-1)[0] = value

@@ -5,24 +5,14 @@ import ctypes.util
 import json
 import math
 import os
-import subprocess
-import sys
 
 import pytest
-from example_runner import REPO, run
+from example_runner import evaluate, run
 
 imageio = pytest.importorskip("imageio.v3", reason="videos need imageio (pip install -e '.[video]')")
 pytest.importorskip("imageio_ffmpeg", reason="MP4 videos need imageio-ffmpeg (pip install -e '.[video]')")
 
 EGL = {"MUJOCO_GL": "egl"}
-
-
-def evaluate(*overrides: str, env: dict | None = None, check: bool = True) -> subprocess.CompletedProcess:
-    proc = subprocess.run([sys.executable, str(REPO / "examples" / "evaluate.py"), *overrides], capture_output=True,
-                          text=True, cwd=REPO, timeout=600, env={**os.environ, **EGL, **(env or {})})
-    if check and proc.returncode != 0:
-        raise AssertionError(f"evaluate.py failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-5000:]}")
-    return proc
 
 
 @pytest.fixture(scope="module")

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import json
 import signal
+import subprocess
+import sys
 import time
 
 import pytest
@@ -164,6 +166,23 @@ def test_resume_with_other_env_is_refused(tmp_path, teacher_dir):
     proc = run(run_dir, "env=Hopper-v4", f"teacher.path={teacher_dir / HOPPER}", "collector.total_frames=1000",
                "logger.backends=[csv]", "seed=1", "resume=true", *TINY, check=False)
     assert proc.returncode != 0 and "written with seed=0" in proc.stderr
+    assert (run_dir / "summary.json").exists()  # a refused resume leaves the finished run as it was
+
+
+def test_make_teacher_records_a_demonstration(tmp_path):
+    """``examples/make_teacher.py`` (TD3 on the dense reward, then the best deterministic episode)."""
+    from example_runner import REPO
+
+    from torchrl_sail import load_demonstrations
+
+    proc = subprocess.run([sys.executable, str(REPO / "examples" / "make_teacher.py"), "env=InvertedPendulum-v4",
+                           "frames=1000", "init_random_frames=500", "frames_per_batch=500", "updates_per_batch=10",
+                           "eval_every_frames=500", f"out={tmp_path / 'teacher'}", f"hydra.run.dir={tmp_path / 'run'}"],
+                          capture_output=True, text=True, cwd=REPO, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    demos, meta = load_demonstrations(tmp_path / "teacher")
+    assert meta["env_id"] == "InvertedPendulum-v4" and demos.numel() == meta["episode_lengths"][0]
+    assert f"return {meta['episode_returns'][0]:.1f}" in proc.stdout
 
 
 def test_corrupt_checkpoint_is_reported(tmp_path, teacher_dir):

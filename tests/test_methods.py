@@ -5,7 +5,7 @@ import json
 import shutil
 
 import pytest
-from example_runner import fail_in_process, run, saved, scalar
+from example_runner import evaluate, fail_in_process, run, saved, scalar
 from test_example import HOPPER, TINY
 
 COMMON = ["env=Hopper-v4", "collector.total_frames=2000", "logger.backends=[csv]", "checkpoint.every_frames=1000",
@@ -90,6 +90,10 @@ def test_bc_is_offline_and_skipped_when_finished(tmp_path, teacher_dir):
     stamp = (run_dir / "summary.json").stat().st_mtime_ns
     proc = run(run_dir, *args, "resume=auto")
     assert "finished run: skipped" in proc.stdout and (run_dir / "summary.json").stat().st_mtime_ns == stamp
+    # evaluate.py loads BC's actor: on the run's eval seed it reproduces the run's evaluation
+    evaluate(f"run_dir={run_dir}", "seed=10000", "episodes=1", f"out={tmp_path / 'eval.json'}")
+    result = json.loads((tmp_path / "eval.json").read_text())
+    assert result["dense_return"]["mean"] == pytest.approx(summary["final_eval_return"], rel=1e-6)
 
 
 def test_gail_runs_on_policy_and_resumes(tmp_path, teacher_dir):
@@ -105,6 +109,10 @@ def test_gail_runs_on_policy_and_resumes(tmp_path, teacher_dir):
     run(run_dir, *args, "collector.total_frames=3072")  # continued from the 2048-frame checkpoint
     assert [frame for frame, _ in scalar(run_dir, "eval/return")] == [1024, 2048, 3072]
     assert json.loads((run_dir / "summary.json").read_text())["gradient_steps"] == 6 * 10 * 8
+    # evaluate.py loads the PPO actor of the last checkpoint
+    evaluate(f"run_dir={run_dir}", "episodes=1", f"out={tmp_path / 'eval.json'}")
+    result = json.loads((tmp_path / "eval.json").read_text())
+    assert result["algo"] == "gail" and result["checkpoint_frames"] == 3072 and result["length"]["values"][0] >= 1
 
 
 def test_resume_auto_continues_skips_and_restarts(tmp_path, teacher_dir):

@@ -29,8 +29,8 @@ class DivergenceCheck:
     A non-finite critic or discriminator loss does not stop training by itself: the NaN spreads
     into the parameters and every later update, and a loss filtered out of the logs hides it.
     Call the check where the loop already reads its metrics back (the logging cadence) and
-    before every checkpoint: on the finite path it costs one reduction over the parameter
-    norms and a single host sync, never one per gradient step. On a non-finite value it raises
+    before every checkpoint: on the finite path it costs one ``isfinite().all()`` per tensor
+    and a single host sync, never one per gradient step. On a non-finite value it raises
     :class:`DivergenceError` naming every offending quantity and the frame, before anything
     non-finite is written, so the last checkpoint on disk stays the last good one.
 
@@ -39,9 +39,8 @@ class DivergenceCheck:
 
     Args:
         modules (Mapping[str, nn.Module]): the modules whose parameters and floating-point
-            buffers to check (the loss holds the actor, critics and target networks); the
-            tensors are collected once, so load states in place (``load_state_dict``) before
-            or after building the check, not by replacing the modules.
+            buffers to check (the loss holds the actor, critics and target networks), read
+            at every call.
         unit (str, optional): what the loop counts, named in the error. Default: ``"frame"``
             (an offline loop counts gradient steps).
 
@@ -62,18 +61,22 @@ class DivergenceCheck:
     """
 
     def __init__(self, modules: Mapping[str, nn.Module], *, unit: str = "frame") -> None:
-        self.unit = unit
-        self.names: list[str] = []
-        self.tensors: list[torch.Tensor] = []
         for prefix, module in modules.items():
             if not isinstance(module, nn.Module):
                 raise TypeError(f"DivergenceCheck: modules[{prefix!r}] is a {type(module).__name__}, not an nn.Module")
-            seen = set()
+        self.modules = dict(modules)
+        self.unit = unit
+
+    def named_tensors(self) -> dict[str, torch.Tensor]:
+        """The floating-point parameters and buffers, read at each call: state created after the check
+        (e.g. running statistics made at an env's first step) is checked too."""
+        tensors, seen = {}, set()
+        for prefix, module in self.modules.items():
             for name, tensor in [*module.named_parameters(), *module.named_buffers()]:
                 if tensor.is_floating_point() and id(tensor) not in seen:
                     seen.add(id(tensor))
-                    self.names.append(f"{prefix}.{name}")
-                    self.tensors.append(tensor)
+                    tensors[f"{prefix}.{name}"] = tensor
+        return tensors
 
     @torch.no_grad()
     def __call__(self, metrics: Mapping[str, object], *, frame: int, checkpoint: str | None = None) -> None:
@@ -84,17 +87,18 @@ class DivergenceCheck:
             frame: the frame count, named in the error.
             checkpoint: where the last good checkpoint is, named in the error with what to do.
         """
-        logged = {key: value for key, value in metrics.items() if torch.is_tensor(value)}
-        values = [value.detach().float().reshape(-1) for value in logged.values()]
-        # A NaN or inf anywhere in a tensor makes its norm NaN or inf: one norm per tensor.
-        norms = [norm.reshape(1).float() for norm in torch._foreach_norm([t.detach() for t in self.tensors])]
-        flat = torch.cat(values + norms) if values or norms else torch.zeros(0)
-        if bool(flat.isfinite().all()):  # the one host sync
+        logged = {key: value.detach() for key, value in metrics.items() if torch.is_tensor(value)}
+        tensors = {**logged, **self.named_tensors()}
+        if not tensors:
             return
-        bad = [key for key, value in zip(logged, values) if not bool(value.isfinite().all())]
-        bad += [name for name, norm in zip(self.names, norms) if not bool(norm.isfinite().all())]
-        shown = [f"{key}={logged[key].detach().float().reshape(-1)[0].item():g}" if key in logged else key
-                 for key in bad[:8]]
+        # One flag per tensor (exact: no norm that overflows on large finite values), gathered on
+        # one device, then a single host sync.
+        device = next(iter(tensors.values())).device
+        flags = torch.stack([tensor.isfinite().all().to(device, non_blocking=True) for tensor in tensors.values()])
+        if bool(flags.all()):
+            return
+        bad = [name for name, ok in zip(tensors, flags.tolist()) if not ok]  # logged tensors come first
+        shown = [f"{key}={logged[key].float().reshape(-1)[0].item():g}" if key in logged else key for key in bad[:8]]
         more = f" and {len(bad) - 8} more" if len(bad) > 8 else ""
         where = (f" Nothing was saved after the last good checkpoint ({checkpoint}): inspect it, or continue it "
                  f"with other settings (e.g. a lower learning rate) and resume=true.") if checkpoint else ""
