@@ -5,9 +5,10 @@ import ctypes.util
 import json
 import math
 import os
+import sys
 
 import pytest
-from example_runner import evaluate, run
+from example_runner import evaluate, REPO, run
 
 imageio = pytest.importorskip("imageio.v3", reason="videos need imageio (pip install -e '.[video]')")
 pytest.importorskip("imageio_ffmpeg", reason="MP4 videos need imageio-ffmpeg (pip install -e '.[video]')")
@@ -58,14 +59,6 @@ def test_evaluate_writes_stats_and_a_video_that_decodes(trained):
     assert video["fps"] == 125 and "evaluation.mp4" in proc.stdout
 
 
-def test_evaluate_gif(trained, tmp_path):
-    evaluate(f"run_dir={trained}", "episodes=1", "video=true", "video_format=gif", "video_size=[160,120]",
-             f"out={tmp_path / 'eval.json'}")
-    result = json.loads((tmp_path / "eval.json").read_text())
-    frames = imageio.imread(tmp_path / "eval.gif", index=None)
-    assert frames.shape == (result["length"]["values"][0] + 1, 120, 160, 3)
-
-
 @pytest.mark.skipif(ctypes.util.find_library("OSMesa") is not None, reason="OSMesa is installed here")
 def test_missing_gl_library_names_the_variable_and_the_package(trained, tmp_path):
     # MuJoCo loads the MUJOCO_GL backend on import (TorchRL imports MuJoCo): checked before that
@@ -86,11 +79,14 @@ def test_unusable_gl_backend_fails_before_anything_is_written(trained, tmp_path)
 
 
 def test_evaluate_bad_run_dir(tmp_path):
-    proc = evaluate(f"run_dir={tmp_path}", check=False)
-    assert proc.returncode != 0 and f"run_dir={tmp_path}: no config.yaml" in proc.stderr
+    sys.path.insert(0, str(REPO / "examples"))
+    from evaluate import load_run
+
+    with pytest.raises(FileNotFoundError, match=f"run_dir={tmp_path}: no config.yaml"):
+        load_run(tmp_path)
     (tmp_path / "config.yaml").write_text("seed: 0\n")
-    proc = evaluate(f"run_dir={tmp_path}", check=False)
-    assert proc.returncode != 0 and "no checkpoint/ to evaluate" in proc.stderr
+    with pytest.raises(FileNotFoundError, match="no checkpoint/ to evaluate"):
+        load_run(tmp_path)
 
 
 def test_evaluate_exports_the_agents_episodes_to_minari(trained, tmp_path):
@@ -99,8 +95,10 @@ def test_evaluate_exports_the_agents_episodes_to_minari(trained, tmp_path):
 
     datasets = {"MINARI_DATASETS_PATH": str(tmp_path / "datasets")}
     evaluate(f"run_dir={trained}", "episodes=2", "export=sail/Hopper-v4/agent-v0", f"out={tmp_path / 'e.json'}",
-             env=datasets)
+             "video=true", "video_format=gif", "video_size=[160,120]", env=datasets)
     result = json.loads((tmp_path / "e.json").read_text())
+    # the GIF: the first episode, its reset frame and one per step, at the requested size
+    assert imageio.imread(tmp_path / "e.gif", index=None).shape == (result["length"]["values"][0] + 1, 120, 160, 3)
     data, meta = load_demonstrations(tmp_path / "datasets" / "sail" / "Hopper-v4" / "agent-v0")
     # dense rewards recovered from the running return: the episodes' returns, exactly as evaluated
     assert meta["episode_returns"] == pytest.approx(result["dense_return"]["values"], rel=1e-9)
