@@ -24,8 +24,8 @@ from torchrl.objectives import ClipPPOLoss, group_optimizers
 from torchrl.objectives.value import GAE
 
 from torchrl_sail import DiscriminatorLoss, DivergenceCheck, DiscriminatorReward, MixedReplayBuffer, TRANSITION_KEYS
-from utils import crossings, evaluate, log_metrics, logger_states, make_discriminator, make_env, make_loggers, \
-    make_replay, make_teacher, new_run, start_or_resume, train_timing, write_summary
+from utils import crossings, log_metrics, logger_states, make_discriminator, make_env, make_loggers, \
+    make_replay, make_teacher, new_run, record_evaluation, start_or_resume, train_timing, write_summary
 from video import log_video, make_render_env
 
 
@@ -131,10 +131,7 @@ def run_gail(cfg, run_dir: Path, resuming: bool) -> None:
         check(metrics, frames)  # NaN/inf stops the run before it is evaluated, logged or saved
 
         if crossings(cfg.eval.every_frames, 0, before, frames):
-            metrics["eval/return"] = evaluate(eval_env, actor, cfg.eval.episodes, cfg.env.max_episode_steps)
-            run["evals"].append((frames, metrics["eval/return"]))
-            if run["passed_teacher_at"] is None and metrics["eval/return"] > teacher_return:
-                run["passed_teacher_at"] = frames
+            metrics["eval/return"] = record_evaluation(eval_env, actor, cfg, run, frames, teacher_return)
         if crossings(cfg.eval.video_every_frames, 0, before, frames):
             log_video(loggers, render_env, actor, cfg, run_dir, frames)
         metrics["time/fps"] = (frames - start_frames) / max(time.time() - start, 1e-9)

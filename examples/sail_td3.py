@@ -37,7 +37,6 @@ from torchrl_sail import AbsorbingStateTransform, DivergenceCheck, MixedReplayBu
 from utils import (
     check_config,
     crossings,
-    evaluate,
     FilledRows,
     log_metrics,
     logger_states,
@@ -54,6 +53,7 @@ from utils import (
     make_teacher,
     make_update,
     new_run,
+    record_evaluation,
     resume_mode,
     start_or_resume,
     seed_everything,
@@ -161,13 +161,15 @@ def main(cfg):  # noqa: F821
     start, start_frames, last_log, metrics = time.time(), frames, frames, {}
     train_clock = None  # (time, frames) when warm-up ended: the start of the timed part
     try:
-        collector_iter = iter(collector)
-        for _ in range(len(collector) if collector.total_frames else 0):  # 0 frames left: a finished run
+        batches = iter(collector if collector.total_frames else ())  # 0 frames left: a finished run
+        while True:
             if train_clock is None and frames >= warmup:
                 timeit.erase()
                 train_clock = (time.time(), frames)
             with timeit("collect"):
-                data = next(collector_iter)
+                data = next(batches, None)
+            if data is None:  # the budget is collected
+                break
             before, frames = frames, frames + data.numel()
             with timeit("replay_extend"):
                 flat = data.reshape(-1)
@@ -227,10 +229,7 @@ def main(cfg):  # noqa: F821
 
             with timeit("eval"):
                 if crossings(cfg.eval.every_frames, 0, before, frames):
-                    metrics["eval/return"] = evaluate(eval_env, actor, cfg.eval.episodes, cfg.env.max_episode_steps)
-                    run["evals"].append((frames, metrics["eval/return"]))
-                    if run["passed_teacher_at"] is None and metrics["eval/return"] > teacher_return:
-                        run["passed_teacher_at"] = frames
+                    metrics["eval/return"] = record_evaluation(eval_env, actor, cfg, run, frames, teacher_return)
                 if crossings(cfg.eval.video_every_frames, 0, before, frames):
                     log_video(loggers, render_env, actor, cfg, run_dir, frames)
             with timeit("log"):

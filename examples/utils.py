@@ -179,9 +179,6 @@ def make_collector(cfg: DictConfig, env, policy, *, frames: int):
         # with one shared seed, all workers would replay the same episodes.
         collector.set_seed(cfg.seed + frames)
     if backend == "ray":
-        if not hasattr(collector, "requested_frames_per_batch"):
-            # torchrl 0.14's RayCollector does not set it: len(collector) raises AttributeError.
-            collector.requested_frames_per_batch = cfg.collector.frames_per_batch
         # First push now, before any batch: it connects TorchRL's RayWeightSyncScheme (a gloo
         # group of the learner and the actors, 60 s rendezvous), so a failure stops the run
         # before it trains. Later pushes (one per batch, in the loop) reuse the group.
@@ -427,6 +424,16 @@ def evaluate_episodes(env, actor, episodes: int, max_steps: int, *, keep_rollout
 def evaluate(env, actor, episodes: int, max_steps: int) -> float:
     """Mean dense return of deterministic episodes (reporting only; the learner never sees it)."""
     return sum(e["dense_return"] for e in evaluate_episodes(env, actor, episodes, max_steps)) / episodes
+
+
+def record_evaluation(eval_env, actor, cfg: DictConfig, run: dict, frames: int, teacher_return: float) -> float:
+    """The loops' evaluation at ``frames``: its mean return, kept in ``run["evals"]`` with the first
+    frame it beat the teacher (``run["passed_teacher_at"]``)."""
+    value = evaluate(eval_env, actor, cfg.eval.episodes, cfg.env.max_episode_steps)
+    run["evals"].append((frames, value))
+    if run["passed_teacher_at"] is None and value > teacher_return:
+        run["passed_teacher_at"] = frames
+    return value
 
 
 # ----------------------------------------------------------------------------- run folder

@@ -2,7 +2,9 @@
 
 Used by ``evaluate.py video=true`` and by training (``eval.video_every_frames``). Frames come
 from TorchRL's ``PixelRenderTransform`` (``make_sail_env(render_size=...)``); files are written
-with imageio (MP4 through the ffmpeg binary of ``imageio-ffmpeg``: ``pip install -e '.[video]'``).
+with imageio (MP4 through the ffmpeg binary of ``imageio-ffmpeg``: ``pip install -e '.[video]'``):
+TorchRL's own MP4 writer (``CSVLogger(video_format="mp4")``) needs torchcodec and the system's
+FFmpeg libraries, which a pip install does not bring.
 """
 from __future__ import annotations
 

@@ -304,14 +304,7 @@ def save_demonstrations(
         meta.setdefault("episode_lengths", lengths)
     meta.setdefault("source", str(path))
 
-    def to_json(obj: Any) -> Any:
-        if isinstance(obj, (np.ndarray, np.generic, torch.Tensor)):
-            return obj.tolist()
-        if isinstance(obj, os.PathLike):
-            return os.fspath(obj)
-        raise TypeError(f"metadata for {path} must be JSON-able; got {obj!r}.")
-
-    text = json.dumps(meta, indent=2, default=to_json)
+    text = json.dumps(meta, indent=2, default=_json_default(f"metadata for {path}"))
 
     def write(staging: Path) -> None:
         data.detach().cpu().memmap(staging, copy_existing=True)
@@ -319,6 +312,21 @@ def save_demonstrations(
 
     _publish(path, write)
     return path
+
+
+def _json_default(what: str) -> Callable[[Any], Any]:
+    """``json.dumps(default=...)`` for metadata: arrays and tensors as lists, paths as strings, sets sorted."""
+
+    def default(obj: Any) -> Any:
+        if isinstance(obj, (np.ndarray, np.generic, torch.Tensor)):
+            return obj.tolist()
+        if isinstance(obj, os.PathLike):
+            return os.fspath(obj)
+        if isinstance(obj, set):
+            return sorted(obj)
+        raise TypeError(f"{what} must be JSON-able; got {obj!r}.")
+
+    return default
 
 
 def _publish(path: Path, write: Callable[[Path], None]) -> None:

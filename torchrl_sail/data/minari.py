@@ -23,8 +23,11 @@ import torch
 from tensordict import TensorDict, TensorDictBase
 
 from torchrl_sail.data.demonstrations import (
+    _ACTION_ROUNDING,
     _check_transitions,
+    _json_default,
     _publish,
+    _TIME_FEATURE_ATOL,
     Demonstrations,
     load_demonstrations,
 )
@@ -36,9 +39,6 @@ MINARI_PREFIX = "minari:"
 # Our metadata (the exported demonstrations' own) inside the dataset's metadata.json
 _METADATA_KEY = "torchrl_sail"
 _INSTALL = "pip install -e '.[minari]'"
-# as in load_sb_demonstrations: float32 rounding of the time column and of the actions
-_TIME_FEATURE_ATOL = 1e-5
-_ACTION_ROUNDING = 1e-5
 # recomputed by the loader, not carried over from the exported metadata
 _RECOMPUTED = ("episode_returns", "episode_lengths", "n_episodes", "n_transitions")
 
@@ -534,14 +534,8 @@ def export_minari_dataset(
             f"(--overwrite) to replace it, or choose another id or version."
         )
 
-    def to_json(obj: Any) -> Any:
-        if isinstance(obj, (np.ndarray, np.generic, torch.Tensor)):
-            return obj.tolist()
-        if isinstance(obj, (os.PathLike, set)):
-            return os.fspath(obj) if isinstance(obj, os.PathLike) else sorted(obj)
-        raise TypeError(f"{where}: metadata must be JSON-able; got {obj!r}.")
-
-    ours = json.loads(json.dumps({k: v for k, v in meta.items() if k not in _RECOMPUTED}, default=to_json))
+    ours = json.loads(json.dumps({k: v for k, v in meta.items() if k not in _RECOMPUTED},
+                                 default=_json_default(f"{where}: metadata")))
     dataset_metadata = {
         "dataset_id": dataset_id,
         "minari_version": minari.__version__,
