@@ -8,11 +8,26 @@ are skipped). Runs are grouped by (env, teacher, method): the teacher is the fol
 ``run_matrix.py`` folder (the nearest ``matrix.json`` above the run), else the teacher file's
 name (``shipped`` for the env's default teacher). Writes to ``--out``:
 
-- ``results.md`` and ``results.csv``: per group, the final deterministic evaluation return
-  (mean, sample std, a 95% BCa bootstrap CI from scipy), its ratio to the teacher's return, and
-  the frames each seed needed to first exceed the teacher (median over the seeds that did);
+- ``results.md`` and ``results.csv``: one row per group, from each run's deterministic
+  evaluations (``logs/scalars/eval/return.csv``: frames, mean return of ``eval.episodes``
+  episodes; the reporting spec asks for 10 episodes, and other counts are noted). Per run:
+
+  - the headline figure: the mean of its last 5 evaluations (``HEADLINE_EVALS``; of all its
+    evaluations when it has fewer, marked † in the table and named in the notes);
+  - final: its last evaluation; best: its highest evaluation;
+  - frames to pass the teacher: the frames at its first evaluation whose return is above the
+    teacher's (``summary.json``'s ``passed_teacher_at_frame``, else from the curve; None if never).
+
+  Per group, over seeds: the headline mean (the first column after env, teacher and method:
+  "last-5 mean", ``last5_mean`` in the CSV), its sample std (ddof=1) and 95% BCa bootstrap CI
+  of the mean (scipy, fixed seed; both n/a for one seed), the mean final and mean best
+  evaluation, headline mean / teacher return (the median of the seeds' teacher returns), and
+  the frames to pass the teacher (median over the seeds that passed, with "k/n seeds passed").
+  A run without an eval CSV (``logger.backends`` without csv) counts ``summary.json``'s final
+  evaluation as its one evaluation (and its ``best_eval_return`` as best), noted as such;
 - ``curves_<env>_<teacher>.png``: eval return against frames, one colour per method (mean over
-  seeds, min-max band), the teacher's return dashed, offline methods as dotted lines.
+  seeds, min-max band), the teacher's return dashed, offline methods (one evaluation each, at
+  their headline mean) as dotted lines.
 
 Only finished runs count. Missing runs (expected by ``--expect-*`` or ``matrix.json`` and
 absent), unfinished ones (no ``summary.json``, or fewer frames than ``collector.total_frames``)
@@ -36,7 +51,10 @@ import yaml
 
 # Display order; methods not listed here come after, alphabetically.
 METHOD_ORDER = ("sail", "sail_no_lfd", "sail_no_adapt", "sail_onpolicy", "sail_sac", "sail_rnd",
-                "td3_delayed", "dac", "ddpgfd", "pofd", "gail", "bc")
+                "td3_delayed", "dac", "ddpgfd", "pofd", "pofd_td3", "gail", "bc")
+HEADLINE_EVALS = 5  # the headline figure of a run: the mean of its last 5 evaluations
+HEADLINE = f"last{HEADLINE_EVALS}"  # its CSV column prefix
+SPEC_EVAL_EPISODES = 10  # episodes per evaluation the reporting spec asks for
 CI_RESAMPLES = 10_000
 CI_SEED = 0
 NA = "n/a"
@@ -63,10 +81,43 @@ class Run:
         return bool(self.summary and self.summary.get("offline"))
 
     @property
-    def final_return(self) -> float | None:
-        """The summary's final eval return, else the last eval row."""
+    def eval_returns(self) -> list[float]:
+        """The deterministic eval returns in frame order; without an eval CSV, the summary's final one."""
+        if self.curve:
+            return [value for _, value in self.curve]
         value = (self.summary or {}).get("final_eval_return")
-        return float(value) if value is not None else (self.curve[-1][1] if self.curve else None)
+        return [] if value is None else [float(value)]
+
+    @property
+    def headline_evals(self) -> int:
+        """How many evaluations the headline averages: ``HEADLINE_EVALS``, or all of them if fewer."""
+        return min(HEADLINE_EVALS, len(self.eval_returns))
+
+    @property
+    def headline_return(self) -> float | None:
+        """The headline figure: the mean of the last ``HEADLINE_EVALS`` eval returns (all, if fewer)."""
+        returns = self.eval_returns[-HEADLINE_EVALS:]
+        return statistics.fmean(returns) if returns else None
+
+    @property
+    def final_return(self) -> float | None:
+        """The last eval return."""
+        returns = self.eval_returns
+        return returns[-1] if returns else None
+
+    @property
+    def best_return(self) -> float | None:
+        """The highest eval return (without an eval CSV: the summary's ``best_eval_return``, else the final)."""
+        if self.curve:
+            return max(value for _, value in self.curve)
+        value = (self.summary or {}).get("best_eval_return")
+        return float(value) if value is not None else self.final_return
+
+    @property
+    def eval_episodes(self) -> int | None:
+        """Episodes per evaluation (``eval.episodes`` of the config), None where the config lacks it."""
+        value = (self.config.get("eval") or {}).get("episodes")
+        return None if value is None else int(value)
 
     @property
     def teacher_return(self) -> float | None:
@@ -92,7 +143,8 @@ class Group:
 
     @property
     def values(self) -> list[float]:
-        return [run.final_return for run in self.runs]
+        """The seeds' headline figures (mean of the last ``HEADLINE_EVALS`` evaluations)."""
+        return [run.headline_return for run in self.runs]
 
     @property
     def teacher_return(self) -> float | None:
@@ -104,7 +156,9 @@ class Group:
         return all(run.offline for run in self.runs)
 
     def stats(self) -> dict:
-        """Mean, sample std (ddof=1), 95% CI, ratio to the teacher, frames to pass it."""
+        """Over seeds: the headline's mean, sample std (ddof=1) and 95% CI (std and CI None for one
+        seed), the mean final and best evaluation, headline mean / teacher return, and the frames to
+        pass the teacher (median over the seeds that passed; ``seeds_past_teacher``: "k/n")."""
         values = self.values
         mean = statistics.fmean(values)
         std = statistics.stdev(values) if len(values) > 1 else None
@@ -114,7 +168,10 @@ class Group:
         teacher = self.teacher_return
         return {
             "n_seeds": len(values), "seeds": sorted(run.seed for run in self.runs),
-            "mean": mean, "std": std, "ci95_low": low, "ci95_high": high,
+            "headline_mean": mean, "headline_std": std, "ci95_low": low, "ci95_high": high,
+            "headline_evals_min": min(run.headline_evals for run in self.runs),
+            "final_mean": statistics.fmean(run.final_return for run in self.runs),
+            "best_mean": statistics.fmean(run.best_return for run in self.runs),
             "vs_teacher": mean / teacher if teacher else None,
             "frames_to_teacher_median": statistics.median(passed) if passed else None,
             "seeds_past_teacher": f"{len(passed)}/{len(values)}",
@@ -186,7 +243,16 @@ def teacher_label(folder: Path, config: dict) -> str:
 
 
 def read_scalar(run_dir: Path, tag: str) -> list[tuple[int, float]]:
-    """(frames, value) rows of a TorchRL CSV scalar, sorted by frames, the last row of a frame kept."""
+    """(frames, value) rows of a TorchRL CSV scalar, sorted by frames, the last row of a frame kept.
+
+    Reads the run's ``logs/scalars/<tag>.csv``, or, in results copied by ``campaign.py --collect``,
+    the ``tag``'s rows of ``scalars.csv``.
+    """
+    collected = run_dir / "scalars.csv"
+    if collected.exists():
+        with open(collected, newline="") as file:
+            rows = {int(float(row["frames"])): float(row["value"]) for row in csv.DictReader(file) if row["tag"] == tag}
+        return sorted(rows.items())
     path = run_dir / "logs" / "scalars" / f"{tag}.csv"
     if not path.exists():
         return []
@@ -368,9 +434,10 @@ def rows(groups: dict) -> list[dict]:
     return out
 
 
-CSV_COLUMNS = ("env", "teacher", "teacher_return", "method", "n_seeds", "seeds", "final_eval_mean",
-               "final_eval_std", "ci95_low", "ci95_high", "vs_teacher", "frames_to_teacher_median",
-               "seeds_past_teacher", "offline")
+# The headline (mean of each run's last 5 evals, over seeds) first after the group's key.
+CSV_COLUMNS = ("env", "teacher", "method", f"{HEADLINE}_mean", f"{HEADLINE}_std", "ci95_low", "ci95_high",
+               "n_seeds", "seeds", "final_mean", "best_mean", "teacher_return", "vs_teacher",
+               "frames_to_teacher_median", "seeds_past_teacher", "headline_evals_min", "offline")
 
 
 def write_csv(path: Path, table: list[dict]) -> None:
@@ -379,7 +446,7 @@ def write_csv(path: Path, table: list[dict]) -> None:
         writer = csv.writer(file)
         writer.writerow(CSV_COLUMNS)
         for row in table:
-            values = {**row, "final_eval_mean": row["mean"], "final_eval_std": row["std"],
+            values = {**row, f"{HEADLINE}_mean": row["headline_mean"], f"{HEADLINE}_std": row["headline_std"],
                       "seeds": " ".join(map(str, row["seeds"]))}
             writer.writerow([NA if values[column] is None else values[column] for column in CSV_COLUMNS])
 
@@ -390,29 +457,35 @@ def fmt(value: float | None, digits: int = 1) -> str:
 
 def markdown(table: list[dict], left_out: list[tuple[str, str]], notes: list[str], curves: list[Path]) -> str:
     """``results.md``: the table, the runs left out, notes on the groups, the curve files."""
-    best, methods = {}, defaultdict(int)  # per (env, teacher): the best mean, the number of methods
+    best, methods = {}, defaultdict(int)  # per (env, teacher): the best headline mean, the number of methods
     for row in table:
         key = (row["env"], row["teacher"])
-        best[key], methods[key] = max(best.get(key, -math.inf), row["mean"]), methods[key] + 1
+        best[key], methods[key] = max(best.get(key, -math.inf), row["headline_mean"]), methods[key] + 1
     lines = [
-        "Final deterministic evaluation return (the last eval of each run) over seeds: mean ± sample std "
-        f"(ddof=1; n/a for one seed), 95% BCa bootstrap CI of the mean (scipy, {CI_RESAMPLES} resamples, "
-        f"seed {CI_SEED}; n/a for one seed), mean / teacher return, and the frames to the first eval above "
-        "the teacher's return (median over the seeds that got there). Best mean per env and teacher in bold.",
+        f"Headline: the mean of each run's last {HEADLINE_EVALS} deterministic evaluations (each the mean "
+        f"return of eval.episodes episodes), over seeds: mean ± sample std (ddof=1; n/a for one seed) and "
+        f"its 95% BCa bootstrap CI (scipy, {CI_RESAMPLES} resamples, seed {CI_SEED}; n/a for one seed). "
+        "† a seed had fewer evaluations, all of them averaged (see Notes). Final and best: the mean over "
+        "seeds of each run's last and highest evaluation. vs teacher: headline mean / teacher return. "
+        "Frames to pass teacher: the frames at a run's first evaluation above the teacher's return, median "
+        "over the seeds that passed. Best headline mean per env and teacher in bold.",
         "",
-        "| env | teacher (return) | method | seeds | final eval return | 95% CI | vs teacher | frames to pass teacher |",
-        "|---|---|---|---|---|---|---|---|",
+        f"| env | teacher (return) | method | last-{HEADLINE_EVALS} mean ± std | 95% CI | seeds | final | best "
+        "| vs teacher | frames to pass teacher |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for row in table:
-        mean = fmt(row["mean"])
-        if row["mean"] == best[row["env"], row["teacher"]] and methods[row["env"], row["teacher"]] > 1:
+        mean = fmt(row["headline_mean"])
+        if row["headline_mean"] == best[row["env"], row["teacher"]] and methods[row["env"], row["teacher"]] > 1:
             mean = f"**{mean}**"
-        std = "" if row["std"] is None else f" ± {fmt(row['std'])}"
+        std = "" if row["headline_std"] is None else f" ± {fmt(row['headline_std'])}"
+        short = " †" if row["headline_evals_min"] < HEADLINE_EVALS else ""
         ci = NA if row["ci95_low"] is None else f"[{fmt(row['ci95_low'])}, {fmt(row['ci95_high'])}]"
         passed = ("offline" if row["offline"] else
-                  f"{fmt(row['frames_to_teacher_median'], 0)} ({row['seeds_past_teacher']} seeds)")
+                  f"{fmt(row['frames_to_teacher_median'], 0)} ({row['seeds_past_teacher']} seeds passed)")
         lines.append(f"| {row['env']} | {row['teacher']} ({fmt(row['teacher_return'])}) | {row['method']} | "
-                     f"{row['n_seeds']} | {mean}{std} | {ci} | {fmt(row['vs_teacher'], 2)} | {passed} |")
+                     f"{mean}{std}{short} | {ci} | {row['n_seeds']} | {fmt(row['final_mean'])} | "
+                     f"{fmt(row['best_mean'])} | {fmt(row['vs_teacher'], 2)} | {passed} |")
     lines += ["", "## Missing or unfinished runs", ""]
     lines += [f"- `{where}`: {why}" for where, why in left_out] or ["None."]
     if notes:
@@ -464,6 +537,25 @@ def plot_curves(path: Path, env: str, teacher: str, groups: list[Group]) -> None
     plt.close(fig)
 
 
+def headline_notes(group: Group) -> list[str]:
+    """Notes on the evaluations behind a group's headline: seeds with fewer than ``HEADLINE_EVALS``
+    evaluations, and evaluations of another number of episodes than the spec's."""
+    name, notes = f"{group.env} / {group.teacher} / {group.method}", []
+    short = [run for run in group.runs if run.headline_evals < HEADLINE_EVALS]
+    if short:
+        def evals(run: Run) -> str:
+            detail = " (offline)" if run.offline else "" if run.curve else " (no eval CSV: summary.json's final eval)"
+            return f"seed {run.seed}: {run.headline_evals}{detail}"
+        seeds = "; ".join(evals(run) for run in sorted(short, key=lambda r: r.seed))
+        notes.append(f"{name}: fewer than {HEADLINE_EVALS} evaluations, so the headline averages all of them "
+                     f"(evaluations per seed: {seeds})")
+    episodes = sorted({run.eval_episodes for run in group.runs if run.eval_episodes not in (None, SPEC_EVAL_EPISODES)})
+    if episodes:
+        notes.append(f"{name}: evaluations of eval.episodes={', '.join(map(str, episodes))} episodes "
+                     f"(the reporting spec asks for {SPEC_EVAL_EPISODES})")
+    return notes
+
+
 def safe_name(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.+-]+", "_", text)
 
@@ -475,6 +567,7 @@ def aggregate(roots: list[Path], out: Path, expect_methods: list[str] = (), expe
     left_out = missing_runs(runs, roots, list(expect_methods), list(expect_seeds)) + left_out
     notes = []
     for group in groups.values():
+        notes += headline_notes(group)
         returns = {run.teacher_return for run in group.runs}
         if len(returns) > 1:
             notes.append(f"{group.env} / {group.teacher} / {group.method}: the seeds' teacher returns differ "

@@ -31,7 +31,8 @@ AlphaMode = Choice("AlphaMode", {name: name for name in ("dynamic", "linear", "c
 AgentData = Choice("AgentData", {name: name for name in ("replay", "recent")})
 RewardSource = Choice("RewardSource", {name: name for name in ("discriminator", "env", "shaped")})
 RewardKind = Choice("RewardKind", {name: name for name in ("gail", "airl")})
-Eviction = Choice("Eviction", {name: name for name in ("topk", "fifo")})
+AbsorbingAction = Choice("AbsorbingAction", {name: name for name in ("zero", "random")})
+Eviction = Choice("Eviction", {name: name for name in ("topk", "union", "fifo")})
 Implementation = Choice("Implementation", {name: name for name in ("fused", "loss")})
 Precision = Choice("Precision", {name: name for name in ("fp32", "bf16")})
 LossFunction = Choice("LossFunction", {name: name for name in ("l1", "l2", "smooth_l1")})
@@ -63,7 +64,9 @@ class AlphaConfig:
 class RewardConfig:
     source: RewardSource = RewardSource.discriminator
     kind: RewardKind = RewardKind.gail
+    clip: Optional[List[float]] = None  # [low, high]: D clipped before the reward (the SAIL authors' DAC)
     coef: float = 1.0
+    coef_decay: float = 1.0  # coef *= coef_decay after every on-policy batch (POfD's lambda_1 schedule)
 
 
 @dataclass
@@ -83,7 +86,11 @@ class PPOConfig:
     clip_epsilon: float = 0.2
     gae_lambda: float = 0.95
     entropy_coef: float = 0.0
-    critic_coef: float = 0.5
+    critic_coef: float = 0.25
+    loss_critic_type: LossFunction = LossFunction.l2
+    anneal_lr: bool = True
+    anneal_clip_epsilon: bool = False
+    normalize_observations: bool = True
     cells: List[int] = field(default_factory=lambda: [64, 64])
 
 
@@ -101,6 +108,14 @@ class BCConfig:
 
 
 @dataclass
+class NStepConfig:
+    """DDPGfD's critic loss L_1 + lambda1 * L_n: the n-step TD loss on the same sampled rows."""
+
+    n: int = 10
+    lambda1: float = 1.0
+
+
+@dataclass
 class AlgoConfig:
     name: str = MISSING
     learner: Learner = Learner.td3
@@ -110,10 +125,14 @@ class AlgoConfig:
     recent_window: int = 2048
     reward: RewardConfig = field(default_factory=RewardConfig)
     absorbing_state: bool = False
+    absorbing_bootstrap: bool = True
+    absorbing_action: AbsorbingAction = AbsorbingAction.zero
     rnd: Optional[RNDConfig] = None
     ppo: Optional[PPOConfig] = None
     sac: SACConfig = field(default_factory=SACConfig)
     bc: BCConfig = field(default_factory=BCConfig)
+    nstep: Optional[NStepConfig] = None  # DDPGfD's n-step loss (null: the 1-step TD loss alone)
+    l2_coef: float = 0.0  # DDPGfD's lambda_2: L2 on the actor's and the critic's parameters (Adam weight_decay)
 
 
 @dataclass
@@ -137,6 +156,12 @@ class DiscriminatorOptimConfig:
 
 
 @dataclass
+class LRDecayConfig:
+    rate: float = 0.5
+    every_frames: int = 100_000
+
+
+@dataclass
 class OptimConfig:
     batch_size: int = 256
     lr: float = 1.0e-3
@@ -152,6 +177,9 @@ class OptimConfig:
     discriminator: DiscriminatorOptimConfig = field(default_factory=DiscriminatorOptimConfig)
     implementation: Implementation = Implementation.fused
     precision: Precision = Precision.fp32
+    actor_updates_after: int = 0
+    actor_max_grad_norm: Optional[float] = None
+    actor_lr_decay: Optional[LRDecayConfig] = None
 
 
 @dataclass

@@ -29,8 +29,10 @@ import torch
 from omegaconf import OmegaConf
 from torchrl.checkpoint import Checkpoint
 
+from torchrl_sail import observation_normalizer
+
 from config_schema import register_config_schema
-from gail import make_ppo_models
+from gail import copy_observation_norm, make_ppo_models
 from utils import evaluate_episodes, make_agent, make_discriminator, make_env, make_losses, seed_everything, \
     write_atomic
 from video import make_render_env, record_episode, video_fps, write_video
@@ -53,10 +55,18 @@ def load_run(run_dir: Path):
 
 
 def load_actor(cfg, env, checkpoint: Path):
-    """The run's deterministic actor with the checkpoint's weights (TD3/SAC keep them in the loss)."""
+    """The run's deterministic actor with the checkpoint's weights (TD3/SAC keep them in the loss).
+
+    A PPO actor reads normalised observations: ``env``'s normaliser gets the training statistics the
+    checkpoint holds, frozen.
+    """
     if cfg.algo.learner == "ppo":
         actor, _ = make_ppo_models(cfg, env)
-        Checkpoint(actor=actor).load(checkpoint, components=["actor"])
+        norm = observation_normalizer(env)  # None for runs without it (algo.ppo.normalize_observations)
+        components = {"actor": actor} if norm is None else {"actor": actor, "observation_norm": norm}
+        Checkpoint(**components).load(checkpoint, components=list(components))
+        if norm is not None:
+            norm.freeze()
     elif cfg.algo.learner == "bc":
         actor, _, _ = make_agent(cfg, env)
         Checkpoint(actor=actor).load(checkpoint, components=["actor"])
@@ -122,6 +132,7 @@ def main(args):  # noqa: F821
               **{key: stats([e[key] for e in episodes]) for key in ("dense_return", "delayed_reward", "length")}}
     if args.video:
         render_env = make_render_env(cfg, seed, args.video_size)  # same seed: replays episode 0
+        copy_observation_norm(env, render_env)  # a PPO actor's frozen statistics (others: nothing)
         frames, rollout = record_episode(render_env, actor, cfg.env.max_episode_steps)
         video = write_video(frames, out.with_suffix(f".{args.video_format}"), video_fps(render_env))
         result["video"] = {"path": str(video), "frames": len(frames), "fps": video_fps(render_env),

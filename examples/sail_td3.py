@@ -33,19 +33,22 @@ from torchrl.checkpoint import Checkpoint, GlobalRNGState
 from bc import run_bc
 from config_schema import register_config_schema
 from gail import run_gail
-from torchrl_sail import AbsorbingStateTransform, DivergenceCheck, MixedReplayBuffer, TRANSITION_KEYS
+from torchrl_sail import DivergenceCheck, MixedReplayBuffer, TRANSITION_KEYS
 from utils import (
+    actor_lr,
     check_config,
     crossings,
     FilledRows,
     log_metrics,
     logger_states,
+    make_absorbing,
     make_agent,
     make_collector,
     make_discriminator,
     make_env,
     make_loggers,
     make_losses,
+    make_nstep,
     make_optimizers,
     make_replay,
     make_reward,
@@ -57,6 +60,7 @@ from utils import (
     resume_mode,
     start_or_resume,
     seed_everything,
+    stored_keys,
     train_timing,
     write_summary,
 )
@@ -79,17 +83,20 @@ def main(cfg):  # noqa: F821
     seed_everything(cfg.seed)
     if cfg.algo.learner == "bc":  # offline: no env frames, no TD3
         return run_bc(cfg, run_dir, resuming)
-    if cfg.algo.learner == "ppo":  # GAIL: on-policy
+    if cfg.algo.learner == "ppo":  # GAIL, POfD: on-policy
         return run_gail(cfg, run_dir, resuming)
 
     # --- env, teacher, buffers (everything is validated before training starts)
     env, eval_env = make_env(cfg, cfg.seed), make_env(cfg, cfg.seed + 10_000)
     # SAIL-RND: a curiosity bonus whose statistics the training env keeps (None for other methods)
     rnd, rnd_loss = make_rnd(cfg, env)
-    # DAC: terminal transitions go into an absorbing state (the env appends its indicator)
-    absorbing = AbsorbingStateTransform() if cfg.algo.absorbing_state else None
-    teacher, teacher_return, teacher_source = make_teacher(cfg, env, absorbing)
+    # DAC: terminal transitions go into an absorbing state (the env appends its indicator); the
+    # demonstrations' absorbing transitions store the zero action, the agent's algo.absorbing_action
+    absorbing = make_absorbing(cfg, env.action_spec)
+    teacher, teacher_return, teacher_source = make_teacher(cfg, env, make_absorbing(cfg))
     replay = make_replay(cfg.env.replay_size, cfg.device)
+    # DDPGfD: each agent transition is stored with its n-step view (None for the other methods)
+    nstep = make_nstep(cfg)
     # SAIL-OnPolicy trains D against the most recent transitions only.
     recent = make_replay(cfg.algo.recent_window, cfg.device) if cfg.algo.discriminator_agent_data == "recent" else replay
 
@@ -102,7 +109,7 @@ def main(cfg):  # noqa: F821
     # (reward.source=env: the env's alone), D once per distinct stored row of a block.
     reward = make_reward(cfg, discriminator, rnd, row_id_key="row_id")
     uses_discriminator = cfg.algo.reward.source != "env"
-    sail_batches = MixedReplayBuffer(teacher, replay, transform=reward, row_id_key="row_id")
+    sail_batches = MixedReplayBuffer(teacher, replay, transform=reward, row_id_key="row_id", keys=stored_keys(cfg))
     d_batches = MixedReplayBuffer(teacher, recent)
 
     # --- everything a stopped run needs to continue, saved and restored as one
@@ -173,12 +180,16 @@ def main(cfg):  # noqa: F821
             before, frames = frames, frames + data.numel()
             with timeit("replay_extend"):
                 flat = data.reshape(-1)
-                stored = flat.select(*TRANSITION_KEYS)
+                if nstep is None:
+                    stored = flat.select(*TRANSITION_KEYS)
+                else:  # per env stream (time last), across batches: a step waits for the n steps after it
+                    stored = nstep.inv(data.select(*TRANSITION_KEYS)).reshape(-1)
                 if absorbing is not None:
                     stored = absorbing.add_absorbing_transitions(stored)
-                replay.extend(stored)
-                if recent is not replay:
-                    recent.extend(stored)
+                if stored.numel():  # (the first batches of a run can all be waiting)
+                    replay.extend(stored)
+                    if recent is not replay:
+                        recent.extend(stored)
             # Algorithm 1: every finished trajectory with r_e > C joins the teacher buffer.
             with timeit("teacher_extend"):
                 if cfg.algo.adaptive:
@@ -199,6 +210,10 @@ def main(cfg):  # noqa: F821
             # buffers nor D change inside a block, so its batches are drawn (and rewarded by the
             # current D) in one call.
             num_updates = crossings(o.train_every_frames, warmup, before, frames) * o.updates_per_train
+            if num_updates and o.actor_lr_decay is not None:  # a function of frames: a resume continues it
+                metrics["sail/actor_lr"] = actor_lr(cfg, before)
+                for group in optimizers["actor"].param_groups:
+                    group["lr"] = metrics["sail/actor_lr"]
             if num_updates:
                 with timeit("sample"), reduced_precision:  # the D reward too, with precision=bf16
                     block = sail_batches.sample(o.batch_size, teacher_fraction=alpha, num_batches=num_updates)
@@ -207,7 +222,8 @@ def main(cfg):  # noqa: F821
                 for batch in block.unbind(0):
                     gradient_steps += 1
                     with timeit("update"):
-                        last.update(update(batch, update_actor=gradient_steps % o.policy_delay == 0))
+                        last.update(update(batch, update_actor=gradient_steps % o.policy_delay == 0
+                                           and gradient_steps >= o.actor_updates_after))
                 metrics.update({f"sail/{key}": value for key, value in last.items()})
             num_d_steps = crossings(d.every_frames, warmup, before, frames) * d.steps if uses_discriminator else 0
             if num_d_steps:

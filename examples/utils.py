@@ -1,13 +1,16 @@
 """Builders and run-folder helpers for ``sail_td3.py`` (sota-implementations layout)."""
 from __future__ import annotations
 
+import importlib.metadata
 import importlib.util
 import json
 import math
 import os
+import platform
 import random
 import resource
 import shutil
+import subprocess
 from functools import partial
 from pathlib import Path
 
@@ -37,12 +40,14 @@ from torchrl_sail import (
     FIFOTrajectoryWriter,
     load_demonstrations,
     make_sail_env,
+    NStepTransform,
     SAILLoss,
     TD3Update,
     TeacherReplayBuffer,
     RNDReward,
     TopKTrajectoryWriter,
     TRANSITION_KEYS,
+    UnionTrajectoryWriter,
 )
 
 # Teachers made by examples/make_teacher.py, one small dataset per env, shipped with the repo.
@@ -90,6 +95,14 @@ def check_config(cfg: DictConfig) -> None:
             fail(key, value, f"must be >= {low}" + (" (0 disables)" if low == 0 else ""))
     for key, value, ok, why in [
         ("optim.lr", o.lr, o.lr > 0, "must be > 0"),
+        ("optim.actor_updates_after", o.actor_updates_after, o.actor_updates_after >= 0, "must be >= 0"),
+        ("optim.actor_max_grad_norm", o.actor_max_grad_norm, o.actor_max_grad_norm is None or o.actor_max_grad_norm > 0,
+         "must be > 0, or null (no clipping)"),
+        ("optim.actor_lr_decay", None if o.actor_lr_decay is None else dict(o.actor_lr_decay),
+         o.actor_lr_decay is None or (0 < o.actor_lr_decay.rate <= 1 and o.actor_lr_decay.every_frames >= 1),
+         "needs 0 < rate <= 1 and every_frames >= 1, or null"),
+        ("optim.actor_lr_decay", None if o.actor_lr_decay is None else dict(o.actor_lr_decay),
+         o.actor_lr_decay is None or cfg.algo.learner == "td3", "is TD3's (algo.learner=td3)"),
         ("optim.discriminator.lr", d.lr, d.lr > 0, "must be > 0"),
         ("algo.bc.lr", cfg.algo.bc.lr, cfg.algo.bc.lr > 0, "must be > 0"),
         ("optim.gamma", o.gamma, 0 < o.gamma <= 1, "must be in (0, 1]"),
@@ -101,14 +114,40 @@ def check_config(cfg: DictConfig) -> None:
         ("algo.absorbing_state", cfg.algo.absorbing_state, not (cfg.algo.absorbing_state and cfg.algo.adaptive),
          "absorbing states need a fixed teacher (algo.adaptive=false): promotion reads unrewritten trajectories"),
         ("optim.precision", o.precision, o.precision == "fp32" or (
-            o.implementation == "fused" and cfg.algo.learner == "td3" and not cfg.algo.absorbing_state),
-         "bf16 is TD3's fused step only: optim.implementation=fused, algo.learner=td3, and no absorbing "
-         "states (DAC's actor runs the loss's own step)"),
+            o.implementation == "fused" and cfg.algo.learner == "td3" and not masks_absorbing_actions(cfg)),
+         "bf16 is TD3's fused step only: optim.implementation=fused, algo.learner=td3, and no bootstrapped "
+         "absorbing states (DAC's masked actor runs the loss's own step)"),
+        ("algo.reward.clip", cfg.algo.reward.clip, cfg.algo.reward.clip is None or (
+            len(cfg.algo.reward.clip) == 2 and 0 < cfg.algo.reward.clip[0] < cfg.algo.reward.clip[1] < 1),
+         "must be [low, high] with 0 < low < high < 1, or null"),
         ("collector.backend", c.backend, c.backend != "direct" or c.num_workers == 1,
          f"direct runs one worker, but collector.num_workers={c.num_workers}"),
         ("collector.backend", c.backend, c.backend != "ray" or importlib.util.find_spec("ray") is not None,
          "the ray backend needs Ray: pip install ray"),
         ("resume", cfg.resume, cfg.resume in (True, False, "auto"), "use true, false or auto"),
+        ("algo.nstep.n", cfg.algo.nstep and cfg.algo.nstep.n, cfg.algo.nstep is None or cfg.algo.nstep.n >= 2,
+         "must be >= 2 (algo.nstep=null for the 1-step TD loss alone)"),
+        ("algo.nstep.lambda1", cfg.algo.nstep and cfg.algo.nstep.lambda1,
+         cfg.algo.nstep is None or 0 < cfg.algo.nstep.lambda1 < math.inf, "must be a finite number > 0"),
+        # The n-step sums are of the stored env reward, made when a transition is stored; other
+        # rewards are made at sample time for the 1-step entries only, and promoted, absorbing or
+        # SAC/BC/PPO rows have no n-step view.
+        ("algo.nstep", "set", cfg.algo.nstep is None or (
+            cfg.algo.learner == "td3" and cfg.algo.reward.source == "env" and cfg.algo.rnd is None
+            and not cfg.algo.adaptive and not cfg.algo.absorbing_state),
+         "the n-step loss (DDPGfD) needs algo.learner=td3, algo.reward.source=env, algo.rnd=null, "
+         "algo.adaptive=false and algo.absorbing_state=false"),
+        ("algo.l2_coef", cfg.algo.l2_coef, 0 <= cfg.algo.l2_coef < math.inf and (
+            cfg.algo.l2_coef == 0 or cfg.algo.learner in ("td3", "sac")),
+         "must be a finite number >= 0, and 0 unless algo.learner is td3 or sac (the actor's and the critic's "
+         "Adam weight decay)"),
+        ("algo.reward.source", cfg.algo.reward.source, cfg.algo.learner != "ppo" or (
+            cfg.algo.reward.source != "env" and cfg.algo.rnd is None and not cfg.algo.absorbing_state),
+         "the PPO generator (gail, pofd) learns from D's reward (discriminator or shaped), without an RND "
+         "bonus or absorbing states"),
+        ("algo.reward.coef_decay", cfg.algo.reward.coef_decay, 0 < cfg.algo.reward.coef_decay <= 1 and (
+            cfg.algo.reward.coef_decay == 1 or cfg.algo.learner == "ppo"),
+         "must be in (0, 1], and 1 unless algo.learner=ppo (it decays the shaping once per on-policy batch)"),
         ("collector.backend_options", c.backend_options, c.backend_options is None or isinstance(c.backend_options, DictConfig),
          "must be a mapping (forwarded to TorchRL's Collector) or null"),
         ("device", cfg.device, cfg.device == "cpu" or torch.cuda.is_available(),
@@ -116,6 +155,18 @@ def check_config(cfg: DictConfig) -> None:
     ]:
         if not ok:
             fail(key, value, why)
+    # The off-policy loop runs the D steps and TD3 updates of every cadence crossed by a
+    # collector batch at once, after it: a batch longer than a cadence bunches them, and one
+    # that does not divide it shifts them, so the reward would come from a D that is behind.
+    if cfg.algo.learner in ("td3", "sac"):
+        cadences = [("optim.train_every_frames", o.train_every_frames)]
+        if cfg.algo.reward.source != "env" and d.steps:
+            cadences.insert(0, ("optim.discriminator.every_frames", d.every_frames))
+        for key, every in cadences:
+            if every % c.frames_per_batch:  # a synchronous collector's batch is over all its workers
+                fail(key, every, f"must be a multiple of collector.frames_per_batch={c.frames_per_batch}: a larger "
+                                 f"collector batch, or one that does not divide it, runs these updates late or "
+                                 f"bunched, so D's reward comes from a stale D (lower collector.frames_per_batch)")
     if len(cfg.eval.video_size) != 2 or min(cfg.eval.video_size) < 16:
         fail("eval.video_size", list(cfg.eval.video_size), "must be [width, height], each >= 16")
     if cfg.eval.video_every_frames and cfg.eval.video_format == "mp4" and importlib.util.find_spec("imageio_ffmpeg") is None:
@@ -126,6 +177,29 @@ def check_config(cfg: DictConfig) -> None:
     if "tensorboard" in cfg.logger.backends and importlib.util.find_spec("tensorboard") is None:
         fail("logger.backends", list(cfg.logger.backends),
              "the tensorboard backend needs the tensorboard package: pip install -e '.[tensorboard]'")
+
+
+def actor_lr(cfg: DictConfig, frames: int) -> float:
+    """The actor's learning rate at ``frames``: ``optim.lr``, decayed stepwise by ``optim.actor_lr_decay``."""
+    decay = cfg.optim.actor_lr_decay
+    return cfg.optim.lr if decay is None else cfg.optim.lr * decay.rate ** (frames // decay.every_frames)
+
+
+def masks_absorbing_actions(cfg: DictConfig) -> bool:
+    """DAC as published: the actor outputs 0 at the absorbing state, which is bootstrapped through."""
+    return bool(cfg.algo.absorbing_state and cfg.algo.absorbing_bootstrap)
+
+
+def make_absorbing(cfg: DictConfig, action_spec=None) -> AbsorbingStateTransform | None:
+    """``algo.absorbing_*`` as a transform of stored transitions (``None`` without absorbing states).
+
+    ``action_spec`` is the agent's: with ``algo.absorbing_action=random`` the agent's absorbing
+    transitions store a random action (the SAIL authors' DAC); the demonstrations' always the zero action.
+    """
+    if not cfg.algo.absorbing_state:
+        return None
+    random = cfg.algo.absorbing_action == "random" and action_spec is not None
+    return AbsorbingStateTransform(bootstrap=cfg.algo.absorbing_bootstrap, action_spec=action_spec if random else None)
 
 
 def seed_everything(seed: int) -> None:
@@ -146,9 +220,18 @@ def crossings(every: int, start: int, before: int, now: int) -> int:
 
 
 # ----------------------------------------------------------------------------- env / data
+def normalized_observation_key(cfg: DictConfig) -> str | None:
+    """Where the PPO generator (gail, pofd) reads its observations: TorchRL's running normalisation of
+    them (its PPO MuJoCo example's VecNorm), ``None`` for the other learners (and runs saved before it).
+    ``"observation"`` stays raw: the demonstrations and the discriminator use it."""
+    ppo = cfg.algo.ppo
+    return "observation_norm" if cfg.algo.learner == "ppo" and ppo.get("normalize_observations", False) else None
+
+
 def make_env(cfg: DictConfig, seed: int):
     env = make_sail_env(cfg.env.name, max_episode_steps=cfg.env.max_episode_steps,
-                        absorbing_state=cfg.algo.absorbing_state, device=cfg.device)
+                        absorbing_state=cfg.algo.absorbing_state, device=cfg.device,
+                        normalized_observation_key=normalized_observation_key(cfg))
     env.set_seed(seed)
     return env
 
@@ -186,6 +269,17 @@ def make_collector(cfg: DictConfig, env, policy, *, frames: int):
     return collector
 
 
+def make_nstep(cfg: DictConfig) -> NStepTransform | None:
+    """DDPGfD's n-step view of stored transitions (``algo.nstep``), ``None`` for the 1-step methods."""
+    return None if cfg.algo.nstep is None else NStepTransform(cfg.algo.nstep.n, cfg.optim.gamma)
+
+
+def stored_keys(cfg: DictConfig) -> list:
+    """The entries every stored transition keeps: TRANSITION_KEYS, and the n-step view with ``algo.nstep``."""
+    nstep = make_nstep(cfg)
+    return [*TRANSITION_KEYS, *(nstep.out_keys_inv if nstep is not None else ())]
+
+
 def make_teacher(cfg: DictConfig, env, absorbing: AbsorbingStateTransform | None = None):
     """The teacher buffer seeded with the demonstrations, the teacher's best dense return, its path.
 
@@ -208,11 +302,17 @@ def make_teacher(cfg: DictConfig, env, absorbing: AbsorbingStateTransform | None
     if absorbing is not None:
         demos = absorbing(demos)
     check_demonstration_dims(demos, env=env, source=str(path))
-    t = cfg.teacher
+    nstep = make_nstep(cfg)
+    if nstep is not None:  # DDPGfD: the demonstrations' n-step view, as the agent's (whole episodes)
+        demos = nstep.apply_to_trajectories(demos)
+    t, keys = cfg.teacher, stored_keys(cfg)
     if t.eviction == "fifo":  # the authors' transition ring
-        writer = FIFOTrajectoryWriter(k=t.k, capacity=t.capacity)
+        writer = FIFOTrajectoryWriter(k=t.k, capacity=t.capacity, keys=keys)
+    elif t.eviction == "union":  # the paper's R_T <- R_T U tau: room for the demonstrations and every frame
+        writer = UnionTrajectoryWriter(k=t.k, capacity=demos.numel() + cfg.collector.total_frames, keys=keys)
     else:  # the paper's K best trajectories (+ 1 row: a terminated episode's absorbing transition)
-        writer = TopKTrajectoryWriter(k=t.k, max_trajectory_length=cfg.env.max_episode_steps + (absorbing is not None))
+        writer = TopKTrajectoryWriter(k=t.k, max_trajectory_length=cfg.env.max_episode_steps + (absorbing is not None),
+                                      keys=keys)
     buffer = TeacherReplayBuffer(writer, device=cfg.device)
     buffer.add_demonstrations(demos)
     return buffer, float(max(meta["episode_returns"])), str(path)
@@ -279,8 +379,8 @@ def make_agent(cfg: DictConfig, env):
             out_keys=["param"],
         ),
         TanhModule(in_keys=["param"], out_keys=["action"], spec=action_spec),
-        # DAC: pi(s_a) = 0, the action the absorbing transitions store
-        *([AbsorbingStateTransform().action_mask()] if cfg.algo.absorbing_state else []),
+        # DAC: pi(s_a) = 0, the action the absorbing transitions store (only read where s_a is bootstrapped)
+        *([AbsorbingStateTransform().action_mask()] if masks_absorbing_actions(cfg) else []),
     )
     modules = [actor]
     if cfg.env.exploration_noise > 0:
@@ -306,7 +406,7 @@ def make_reward(cfg: DictConfig, discriminator: Discriminator, rnd: RNDReward | 
     r = cfg.algo.reward
     reward = None
     if r.source != "env":
-        reward = DiscriminatorReward(discriminator, kind=r.kind, coef=r.coef,
+        reward = DiscriminatorReward(discriminator, kind=r.kind, coef=r.coef, clip=None if r.clip is None else tuple(r.clip),
                                      mode="add" if r.source == "shaped" else "replace", **kwargs)
     if rnd is None or reward is None:
         return reward or rnd
@@ -352,9 +452,9 @@ def make_losses(cfg: DictConfig, actor, critic, discriminator, action_spec):
                         policy_noise=o.policy_noise, noise_clip=o.noise_clip, loss_function=o.loss_function)
         share = loss
     loss.make_value_estimator(gamma=o.gamma)
-    if o.truncation_is_terminal and not cfg.algo.absorbing_state:
+    if o.truncation_is_terminal and not masks_absorbing_actions(cfg):
         # The authors store done = 1 at time-limit truncation too: no bootstrap there. With
-        # absorbing states (DAC) only terminations end an episode, and they bootstrap through s_a.
+        # bootstrapped absorbing states (DAC) only terminations end an episode, through s_a.
         loss.set_keys(terminated="done")
     updater = SoftUpdate(loss, tau=o.tau)
     scheduler = AlphaScheduler(share, mode=a.mode, initial=a.initial, final=a.final, anneal_frames=a.anneal_frames)
@@ -366,10 +466,13 @@ def make_losses(cfg: DictConfig, actor, critic, discriminator, action_spec):
 def make_optimizers(cfg: DictConfig, loss, discriminator, rnd: RNDReward | None = None) -> dict:
     # fused Adam: one kernel for all parameters of a network (CPU and CUDA).
     adam = partial(torch.optim.Adam, fused=True)
+    # DDPGfD's lambda_2 (algo.l2_coef): Adam's coupled weight decay adds l2_coef * theta to the
+    # gradient, i.e. l2_coef / 2 * ||theta||^2 in the actor's and the critic's losses (0: none)
+    l2 = cfg.algo.l2_coef
     optimizers = {
         # convert_to_functional re-samples and stacks the twin Q params: optimise the loss's copy.
-        "critic": adam(loss.qvalue_network_params.flatten_keys().values(), lr=cfg.optim.lr),
-        "actor": adam(loss.actor_network_params.flatten_keys().values(), lr=cfg.optim.lr),
+        "critic": adam(loss.qvalue_network_params.flatten_keys().values(), lr=cfg.optim.lr, weight_decay=l2),
+        "actor": adam(loss.actor_network_params.flatten_keys().values(), lr=cfg.optim.lr, weight_decay=l2),
         "discriminator": adam(discriminator.parameters(), lr=cfg.optim.discriminator.lr),
     }
     if rnd is not None:
@@ -385,10 +488,13 @@ def make_update(cfg: DictConfig, loss, optimizers: dict, target_updater):
     steps it (actor, critics and temperature every step, then the targets)."""
     if cfg.algo.learner != "sac":
         # DAC's masked actor is not the fused step's MLP + tanh: it runs the loss's own step
-        implementation = "loss" if cfg.algo.absorbing_state else cfg.optim.implementation
+        implementation = "loss" if masks_absorbing_actions(cfg) else cfg.optim.implementation
+        nstep = make_nstep(cfg)  # DDPGfD: + lambda_1 * the TD loss of each row's stored n-step view
+        nstep_kwargs = {} if nstep is None else {"nstep_key": nstep.out_key, "nstep_weight": cfg.algo.nstep.lambda1}
         return TD3Update(loss, critic_optimizer=optimizers["critic"], actor_optimizer=optimizers["actor"],
                          target_updater=target_updater, implementation=implementation,
-                         precision=cfg.optim.precision)
+                         precision=cfg.optim.precision, actor_max_grad_norm=cfg.optim.actor_max_grad_norm,
+                         **nstep_kwargs)
     steps = [optimizers[name] for name in ("critic", "actor", "alpha")]
 
     def sac_update(batch, update_actor: bool) -> dict:  # noqa: ARG001 (SAC updates its actor every step)
@@ -583,6 +689,38 @@ def train_timing(train_clock, *, end: float, frames: int) -> dict:
             "counts": {"frames": frames - frames0, **{name: count for name, (_, _, count) in timeit._REG.items()}}}
 
 
+def provenance() -> dict:
+    """What produced a run: the code's git commit (``null`` outside a git checkout), whether
+    tracked files differed from it, the library versions, and the CPU and thread count."""
+
+    def git(*args):
+        try:
+            out = subprocess.run(["git", *args], cwd=Path(__file__).resolve().parent, capture_output=True,
+                                 text=True, timeout=30)
+        except (OSError, subprocess.SubprocessError):
+            return None
+        return out.stdout.strip() if out.returncode == 0 else None
+
+    commit = git("rev-parse", "HEAD")
+    status = git("status", "--porcelain", "--untracked-files=no") if commit else None
+    versions = {name: importlib.metadata.version(name)
+                for name in ("torchrl_sail", "torch", "torchrl", "tensordict", "gymnasium", "mujoco")}
+    return {"commit": commit, "dirty": None if status is None else bool(status), "versions": versions,
+            "python": platform.python_version(), "cpu": platform.processor() or platform.machine(),
+            "cpu_model": cpu_model(), "torch_threads": torch.get_num_threads()}
+
+
+def cpu_model() -> str | None:
+    """The CPU's model name (Linux ``/proc/cpuinfo``), ``None`` where it cannot be read."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return None
+
+
 def write_summary(run_dir: Path, cfg: DictConfig, *, teacher_return: float, alpha_switch_frame, **results) -> None:
     """``learning_curve.png`` (Figure 2 style) and ``summary.json`` of a run."""
     import matplotlib
@@ -609,5 +747,5 @@ def write_summary(run_dir: Path, cfg: DictConfig, *, teacher_return: float, alph
                "total_frames": 0 if results.get("offline") else cfg.collector.total_frames,
                "alpha_switched_at_frame": alpha_switch_frame, **results,
                "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,  # Linux: KiB
-               "learning_curve": "learning_curve.png"}
+               "learning_curve": "learning_curve.png", "provenance": provenance()}
     write_atomic(run_dir / "summary.json", json.dumps(summary, indent=2))

@@ -18,15 +18,20 @@ from torchrl.envs import ExplorationType, set_exploration_type
 
 from mujoco_gl import GL_HELP
 from torchrl_sail import make_sail_env
+from utils import normalized_observation_key
 
 def make_render_env(cfg, seed: int, size):
     """The run's env (same observation layout as training) that also renders ``"pixels"``.
+
+    A PPO run's env normalises observations: give it the training statistics, frozen, before
+    recording (``gail.copy_observation_norm``).
 
     Raises:
         RuntimeError: when MuJoCo cannot render here, naming ``MUJOCO_GL`` and the packages to install.
     """
     env = make_sail_env(cfg.env.name, max_episode_steps=cfg.env.max_episode_steps,
-                        absorbing_state=cfg.algo.absorbing_state, render_size=tuple(size), device=cfg.device)
+                        absorbing_state=cfg.algo.absorbing_state, render_size=tuple(size), device=cfg.device,
+                        normalized_observation_key=normalized_observation_key(cfg))
     try:
         env.reset()  # renders the first frame: fails here without a usable GL backend
     except Exception as err:  # EGL/OSMesa/GLFW failures surface as many exception types

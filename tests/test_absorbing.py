@@ -6,6 +6,7 @@ import argparse
 import pytest
 import torch
 from tensordict import TensorDict
+from torchrl.data import Bounded
 from torchrl.envs.utils import check_env_specs
 
 from torchrl_sail import AbsorbingStateTransform, make_sail_env, SAILLoss
@@ -41,6 +42,26 @@ class TestAbsorbingStateTransform:
         assert out["next", "truncated"].squeeze(-1).tolist() == [False] * 6 + [True]
         # other entries are copied from the terminal row
         assert out["step_count"].squeeze(-1).tolist() == [0, 1, 1, 2, 2, 3, 4]
+
+    def test_sail_authors_variant_against_hand_layout(self):
+        # bootstrap=False with an action spec: the same rows, nothing bootstrapped, random actions at s_a
+        data = _transitions([False, True, True, False, False], [False, False, False, False, True])
+        spec = Bounded(-1.0, 1.0, (1,))
+        torch.manual_seed(0)
+        out = AbsorbingStateTransform(bootstrap=False, action_spec=spec)(data)
+        a = [0.0, 1.0]
+        assert out["observation"].tolist() == [[0, 0], [1, 0], a, [2, 0], a, [3, 0], [4, 0]]
+        assert out["next", "observation"].tolist() == [[1, 0], a, a, a, a, [4, 0], [5, 0]]
+        assert out["next", "terminated"].squeeze(-1).tolist() == [False, True, True, True, True, False, False]
+        assert out["next", "done"].squeeze(-1).tolist() == [False, True, True, True, True, False, True]
+        assert out["next", "truncated"].squeeze(-1).tolist() == [False] * 6 + [True]
+        assert out["next", "reward"].squeeze(-1).tolist() == [100, 101, 0, 102, 0, 103, 104]
+        actions = out["action"].squeeze(-1)
+        assert actions[[0, 1, 3, 5, 6]].tolist() == [10, 11, 12, 13, 14]
+        assert (actions[[2, 4]].abs() <= 1).all() and actions[2] != actions[4] and (actions[[2, 4]] != 0).all()
+        # without the spec the absorbing action is zero (the SAIL authors' demonstrations)
+        zero = AbsorbingStateTransform(bootstrap=False)(data)
+        assert zero["action"].squeeze(-1)[[2, 4]].tolist() == [0, 0]
 
     def test_no_termination_leaves_transitions_alone(self):
         data = _transitions([False, False], [False, True])

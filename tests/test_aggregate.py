@@ -64,26 +64,82 @@ def run_aggregate(roots, out, **kwargs) -> tuple[str, dict]:
     return text, {(row["env"], row["teacher"], row["method"]): row for row in read_csv(out / "results.csv")}
 
 
-def test_mean_std_ci_and_frames_to_teacher(tmp_path):
-    finals = [100.0, 200.0, 400.0]
-    curves = [[(1000, 160.0), (2000, 10.0), (3000, finals[0])],  # above the teacher (150) at 1000
-              [(1000, 10.0), (2000, 10.0), (3000, finals[1])],  # at 3000
-              [(1000, 10.0), (2000, 10.0), (3000, finals[2])]]  # at 3000
-    for seed, curve in enumerate(curves):
-        write_run(tmp_path / "runs" / f"seed{seed}", seed=seed, evals=curve)
+def frames_curve(values: list[float]) -> list[tuple[int, float]]:
+    """Evals at 1000, 2000, ... frames."""
+    return [(1000 * (index + 1), value) for index, value in enumerate(values)]
+
+
+def test_run_headline_is_the_mean_of_the_last_five_evals(tmp_path):
+    run = aggregate.load_run(write_run(tmp_path / "a", evals=frames_curve([1, 2, 3, 4, 5, 6, 7]),
+                                       teacher_return=4.5, total_frames=7000, frames=7000))
+    assert run.problem is None and run.headline_evals == 5
+    assert run.headline_return == 5.0  # mean of 3..7
+    assert run.final_return == 7.0 and run.best_return == 7.0
+    assert run.passed_teacher_at() == 5000  # 5 > 4.5; 4 is not
+
+
+def test_run_final_best_and_frames_to_pass_differ_on_a_bumpy_curve(tmp_path):
+    evals = frames_curve([1, 2, 9, 4, 5, 6, 3])
+    run = aggregate.load_run(write_run(tmp_path / "a", evals=evals, teacher_return=8.0, total_frames=7000, frames=7000))
+    assert run.headline_return == pytest.approx(27 / 5)  # (9 + 4 + 5 + 6 + 3) / 5
+    assert run.final_return == 3.0 and run.best_return == 9.0
+    assert run.passed_teacher_at() == 3000
+    never = aggregate.load_run(write_run(tmp_path / "b", evals=evals, teacher_return=9.0,  # equal is not above
+                                         total_frames=7000, frames=7000))
+    assert never.passed_teacher_at() is None
+
+
+def test_run_with_three_evals_averages_all_three_and_says_so(tmp_path):
+    write_run(tmp_path / "runs" / "seed0", evals=frames_curve([10, 20, 60]))
+    run = aggregate.load_run(tmp_path / "runs" / "seed0")
+    assert run.headline_evals == 3 and run.headline_return == 30.0
+    assert run.final_return == 60.0 and run.best_return == 60.0
     text, rows = run_aggregate([tmp_path / "runs"], tmp_path / "out")
     row = rows["Hopper-v4", "paper", "sail"]
-    mean, std = statistics.fmean(finals), statistics.stdev(finals)  # 233.33, 152.75 (ddof=1)
-    assert float(row["final_eval_mean"]) == pytest.approx(mean)
-    assert float(row["final_eval_std"]) == pytest.approx(std)
-    assert float(row["teacher_return"]) == 150.0 and float(row["vs_teacher"]) == pytest.approx(mean / 150.0)
+    assert float(row["last5_mean"]) == 30.0 and row["headline_evals_min"] == "3"
+    assert "| sail | 30.0 † | n/a | 1 | 60.0 | 60.0 | 0.20 | n/a (0/1 seeds passed) |" in text
+    assert ("Hopper-v4 / paper / sail: fewer than 5 evaluations, so the headline averages all of them "
+            "(evaluations per seed: seed 0: 3)") in text
+
+
+def test_group_headline_mean_std_ci_final_best_and_seeds_passed(tmp_path):
+    curves = [[0, 500, 90, 110, 100, 80, 120],  # last 5: 100; final 120; best 500; passes 250 at 2000
+              [0, 0, 190, 210, 200, 180, 220],  # last 5: 200; final 220; best 220; never passes 250
+              [0, 0, 290, 310, 300, 280, 320]]  # last 5: 300; final 320; best 320; passes at 3000
+    for seed, curve in enumerate(curves):
+        write_run(tmp_path / "runs" / f"seed{seed}", seed=seed, evals=frames_curve(curve), teacher_return=250.0,
+                  total_frames=7000, frames=7000)
+    text, rows = run_aggregate([tmp_path / "runs"], tmp_path / "out")
+    row = rows["Hopper-v4", "paper", "sail"]
+    assert float(row["last5_mean"]) == pytest.approx(200.0)
+    assert float(row["last5_std"]) == pytest.approx(100.0)  # sample std (ddof=1) of 100, 200, 300
+    assert float(row["final_mean"]) == pytest.approx(220.0)  # (120 + 220 + 320) / 3
+    assert float(row["best_mean"]) == pytest.approx(1040 / 3)  # (500 + 220 + 320) / 3
+    assert float(row["teacher_return"]) == 250.0 and float(row["vs_teacher"]) == pytest.approx(0.8)
+    assert float(row["frames_to_teacher_median"]) == 2500.0 and row["seeds_past_teacher"] == "2/3"
+    assert row["n_seeds"] == "3" and row["seeds"] == "0 1 2" and row["headline_evals_min"] == "5"
     low, high = float(row["ci95_low"]), float(row["ci95_high"])
-    assert min(finals) <= low < mean < high <= max(finals)
-    assert aggregate.bootstrap_ci(finals) == aggregate.bootstrap_ci(finals) == (low, high)  # fixed seed
-    assert row["n_seeds"] == "3" and row["seeds"] == "0 1 2"
-    assert float(row["frames_to_teacher_median"]) == 3000.0 and row["seeds_past_teacher"] == "3/3"
-    assert "233.3 ± 152.8" in text and "3000 (3/3 seeds)" in text
+    assert 100.0 <= low < 200.0 < high <= 300.0
+    assert aggregate.bootstrap_ci([100.0, 200.0, 300.0]) == (pytest.approx(low), pytest.approx(high))  # fixed seed
+    assert list(read_csv(tmp_path / "out" / "results.csv")[0])[3] == "last5_mean"  # the headline column first
+    assert "| method | last-5 mean ± std | 95% CI |" in text
+    assert (f"| Hopper-v4 | paper (250.0) | sail | 200.0 ± 100.0 | [{low:.1f}, {high:.1f}] | 3 | 220.0 | 346.7 | "
+            "0.80 | 2500 (2/3 seeds passed) |") in text
     assert "## Missing or unfinished runs\n\nNone." in text
+    assert "## Notes" not in text  # 5 evals per seed, no eval.episodes in the config
+
+
+def test_run_without_eval_csv_falls_back_to_the_summary_and_other_episode_counts_are_noted(tmp_path):
+    folder = write_run(tmp_path / "a", evals=frames_curve([10, 20, 30]), eval={"episodes": 5})
+    summary = json.loads((folder / "summary.json").read_text())
+    (folder / "summary.json").write_text(json.dumps({**summary, "best_eval_return": 40.0}))
+    (folder / "logs" / "scalars" / "eval" / "return.csv").unlink()  # e.g. logger.backends without csv
+    run = aggregate.load_run(folder)
+    assert run.problem is None and run.curve == []
+    assert (run.headline_return, run.final_return, run.best_return, run.headline_evals) == (30.0, 30.0, 40.0, 1)
+    text, _ = run_aggregate([tmp_path], tmp_path / "out")
+    assert "seed 0: 1 (no eval CSV: summary.json's final eval)" in text
+    assert "Hopper-v4 / paper / sail: evaluations of eval.episodes=5 episodes (the reporting spec asks for 10)" in text
 
 
 def test_frames_to_teacher_from_the_curve_when_the_summary_lacks_it(tmp_path):
@@ -108,7 +164,8 @@ def test_missing_and_half_finished_runs_are_listed_not_averaged(tmp_path):
     write_run(runs / "seed4", seed=4, evals=[(1000, 9999.0)], frames=1000)
     text, rows = run_aggregate([runs], tmp_path / "out", expect_seeds=[0, 1, 2, 3, 4])
     row = rows["Hopper-v4", "paper", "sail"]
-    assert row["n_seeds"] == "2" and row["seeds"] == "0 1" and float(row["final_eval_mean"]) == 200.0
+    assert row["n_seeds"] == "2" and row["seeds"] == "0 1" and float(row["final_mean"]) == 200.0
+    assert float(row["last5_mean"]) == pytest.approx((130 / 3 + 110) / 2)  # 3 evals each: all averaged
     missing = text.split("## Missing or unfinished runs")[1]
     assert f"`{runs / 'seed2'}`: unfinished: no summary.json (last eval at 2000 frames, has checkpoint/)" in missing
     assert f"`{runs / 'seed4'}`: unfinished: 1000 of 3000 frames" in missing
@@ -129,11 +186,11 @@ def test_one_seed_has_no_std_or_ci_and_equal_values_a_point_ci(tmp_path):
         write_run(tmp_path / "equal" / f"seed{seed}", algo="td3_delayed", seed=seed)
     text, rows = run_aggregate([tmp_path / "one", tmp_path / "equal"], tmp_path / "out")
     one = rows["Hopper-v4", "paper", "sail"]
-    assert (one["final_eval_std"], one["ci95_low"], one["ci95_high"]) == ("n/a", "n/a", "n/a")
+    assert (one["last5_std"], one["ci95_low"], one["ci95_high"]) == ("n/a", "n/a", "n/a")
     equal = rows["Hopper-v4", "paper", "td3_delayed"]
-    assert float(equal["final_eval_std"]) == 0.0
-    assert float(equal["ci95_low"]) == float(equal["ci95_high"]) == 100.0
-    assert "| sail | 1 | **100.0** | n/a |" in text  # no "± std" for one seed
+    assert float(equal["last5_std"]) == 0.0
+    assert float(equal["ci95_low"]) == float(equal["ci95_high"]) == pytest.approx(160 / 3)  # mean of 10, 50, 100
+    assert "| sail | **53.3** † | n/a | 1 |" in text  # no "± std" for one seed
 
 
 def test_offline_method_counts_with_zero_frames(tmp_path):
@@ -141,8 +198,9 @@ def test_offline_method_counts_with_zero_frames(tmp_path):
     write_run(tmp_path / "bc0", algo="bc", evals=[(0, 120.0)], frames=0, offline=True)
     text, rows = run_aggregate([tmp_path], tmp_path / "out")
     bc = rows["Hopper-v4", "paper", "bc"]
-    assert bc["offline"] == "True" and float(bc["final_eval_mean"]) == 120.0
-    assert "| bc | 1 | **120.0** | n/a | 0.80 | offline |" in text
+    assert bc["offline"] == "True" and float(bc["last5_mean"]) == 120.0
+    assert "| bc | **120.0** † | n/a | 1 | 120.0 | 120.0 | 0.80 | offline |" in text
+    assert "Hopper-v4 / paper / bc: fewer than 5 evaluations" in text and "seed 0: 1 (offline)" in text
     assert list(rows) == [("Hopper-v4", "paper", "sail"), ("Hopper-v4", "paper", "bc")]  # display order
 
 

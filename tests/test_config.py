@@ -65,6 +65,12 @@ def test_optional_blocks_are_typed_when_set():
     with pytest.raises(ConfigCompositionException) as err:
         make("algo=sail_rnd", "algo.rnd.features=many")
     assert "full_key: algo.rnd.features" in str(err.value.__cause__)
+    assert make().algo.nstep is None and make().algo.l2_coef == 0.0  # the 1-step methods: no n-step view, no L2
+    ddpgfd = make("algo=ddpgfd").algo
+    assert (ddpgfd.nstep.n, ddpgfd.nstep.lambda1, ddpgfd.l2_coef) == (10, 1.0, 1e-5)
+    with pytest.raises(ConfigCompositionException) as err:
+        make("algo=ddpgfd", "algo.nstep.n=ten")
+    assert "full_key: algo.nstep.n" in str(err.value.__cause__)
     cfg = make("algo=sail_rnd", "algo.rnd.coef=0.5", "resume=auto",
                "collector.backend_options={remote_configs: {num_cpus: 1}}")
     assert cfg.algo.rnd.coef == 0.5 and cfg.resume == "auto" and cfg.collector.backend_options.remote_configs.num_cpus == 1
@@ -78,6 +84,21 @@ def test_optional_blocks_are_typed_when_set():
     (["algo=dac", "algo.adaptive=true"], "absorbing states need a fixed teacher"),
     (["algo=sail_sac", "optim.precision=bf16"], "bf16 is TD3's fused step only"),
     (["algo.learner=ppo"], "algo.learner=ppo needs the PPO settings"),
+    (["algo=gail", "algo.reward.source=env"], "the PPO generator (gail, pofd) learns from D's reward"),
+    (["algo=pofd_td3", "algo.reward.coef_decay=0.5"], "and 1 unless algo.learner=ppo"),
+    (["algo=pofd", "algo.reward.coef_decay=0"], "algo.reward.coef_decay=0.0: must be in (0, 1]"),
+    (["algo=ddpgfd", "algo.nstep.n=1"], "algo.nstep.n=1: must be >= 2 (algo.nstep=null for the 1-step"),
+    (["algo=ddpgfd", "algo.nstep.lambda1=0"], "algo.nstep.lambda1=0.0: must be a finite number > 0"),
+    (["algo=ddpgfd", "algo.adaptive=true"], "the n-step loss (DDPGfD) needs algo.learner=td3, algo.reward.source=env"),
+    (["algo=ddpgfd", "algo.reward.source=discriminator"], "the n-step loss (DDPGfD) needs"),  # sample-time reward
+    (["algo=ddpgfd", "algo.l2_coef=-1e-5"], "algo.l2_coef=-1e-05: must be a finite number >= 0"),
+    (["algo=bc", "algo.l2_coef=1e-5"], "and 0 unless algo.learner is td3 or sac"),
+    # a collector batch longer than D's cadence, or one that does not divide it
+    (["collector.frames_per_batch=1000"], "optim.discriminator.every_frames=500: must be a multiple of "
+                                          "collector.frames_per_batch=1000"),
+    (["collector.frames_per_batch=300"], "optim.discriminator.every_frames=500: must be a multiple"),
+    (["algo=td3_delayed", "collector.frames_per_batch=300"], "optim.train_every_frames=1000: must be a multiple"),
+    (["algo=sail_sac", "optim.discriminator.every_frames=750"], "optim.discriminator.every_frames=750"),
 ])
 def test_check_config_keeps_ranges_and_cross_field_rules(overrides, message):
     from utils import check_config
@@ -88,6 +109,18 @@ def test_check_config_keeps_ranges_and_cross_field_rules(overrides, message):
     check_config(make())  # the defaults pass
 
 
+@pytest.mark.parametrize("overrides", [
+    ["collector.frames_per_batch=250"],  # divides both cadences
+    ["algo=td3_delayed", "collector.frames_per_batch=1000"],  # no D: only the TD3 cadence counts
+    ["optim.discriminator.steps=0", "collector.frames_per_batch=1000"],  # D never trained
+    ["algo=gail", "collector.frames_per_batch=300"],  # PPO: D once per on-policy batch
+])
+def test_check_config_accepts_cadences_the_batch_divides(overrides):
+    from utils import check_config
+
+    check_config(make(*overrides))
+
+
 def test_evaluate_config_is_typed():
     with initialize_config_dir(config_dir=str(REPO / "conf"), version_base="1.3"):
         cfg = compose(config_name="evaluate", overrides=["run_dir=outputs/x"])
@@ -95,3 +128,19 @@ def test_evaluate_config_is_typed():
         with pytest.raises(ConfigCompositionException) as err:
             compose(config_name="evaluate", overrides=["run_dir=x", "episodes=many"])
     assert "full_key: episodes" in str(err.value.__cause__)
+
+
+@pytest.mark.parametrize("eviction, writer, capacity", [
+    ("topk", "TopKTrajectoryWriter", 10 * 1000),  # K slots of max_episode_steps rows
+    ("union", "UnionTrajectoryWriter", None),  # the demonstrations' rows + total_frames
+    ("fifo", "FIFOTrajectoryWriter", 100_000),  # env.teacher_capacity (Hopper: the authors' 1e5)
+])
+def test_teacher_eviction_builds_its_writer(eviction, writer, capacity):
+    from utils import make_env, make_teacher
+
+    cfg = make("env=Hopper-v4", f"teacher.eviction={eviction}", "collector.total_frames=5000")
+    teacher, _, _ = make_teacher(cfg, make_env(cfg, seed=0))
+    assert type(teacher.writer).__name__ == writer and teacher.writer.k == 10
+    demonstration_rows = len(teacher)  # the shipped teacher: all of it admitted, nothing evicted
+    assert teacher.writer.num_demonstrations >= 1 and demonstration_rows > 0
+    assert teacher.writer.capacity == (demonstration_rows + 5000 if capacity is None else capacity)

@@ -186,6 +186,16 @@ class TestDiscriminatorReward:
         scaled = DiscriminatorReward(disc, kind="airl", coef=0.5)(td.clone())["next", "reward"]
         torch.testing.assert_close(scaled, 0.5 * logit)
 
+    def test_clip_against_hand_values(self):
+        # logit = obs: D = sigmoid(6) = 0.9975 -> 0.99, sigmoid(-6) = 0.0025 -> 0.01, sigmoid(0) = 0.5 kept
+        disc = _linear_disc([1.0, 0.0])
+        td = TensorDict(observation=torch.tensor([[6.0], [-6.0], [0.0]]), action=torch.zeros(3, 1),
+                        next=TensorDict(reward=torch.zeros(3, 1), batch_size=[3]), batch_size=[3])
+        gail = DiscriminatorReward(disc, clip=(0.01, 0.99))(td.clone())["next", "reward"]
+        torch.testing.assert_close(gail, torch.tensor([[-math.log(0.01)], [-math.log(0.99)], [math.log(2.0)]]))
+        airl = DiscriminatorReward(disc, kind="airl", clip=(0.01, 0.99))(td.clone())["next", "reward"]
+        torch.testing.assert_close(airl, torch.tensor([[math.log(99.0)], [-math.log(99.0)], [0.0]]))
+
     def test_add_mode_in_an_env_adds_to_the_env_reward(self):
         disc = Discriminator(OBS_DIM, ACT_DIM, num_cells=(8,))
         plain = ContinuousActionVecMockEnv()
@@ -197,7 +207,9 @@ class TestDiscriminatorReward:
         bonus = 2.0 * F.softplus(disc.net(rollout["observation"], rollout["action"])).detach()
         torch.testing.assert_close(rollout["next", "reward"], dense + bonus)
 
-    @pytest.mark.parametrize("kwargs, message", [({"kind": "wgan"}, "kind must be"), ({"mode": "mix"}, "mode must be")])
+    @pytest.mark.parametrize("kwargs, message", [({"kind": "wgan"}, "kind must be"), ({"mode": "mix"}, "mode must be"),
+                                                 ({"clip": (0.0, 0.99)}, "clip must be"),
+                                                 ({"clip": (0.9, 0.1)}, "clip must be")])
     def test_bad_kind_or_mode(self, kwargs, message):
         with pytest.raises(ValueError, match=message):
             DiscriminatorReward(Discriminator(3, 1, num_cells=(4,)), **kwargs)

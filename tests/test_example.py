@@ -1,6 +1,7 @@
 """End-to-end runs of ``examples/sail_td3.py`` with tiny budgets: outputs, resume, bad input."""
 from __future__ import annotations
 
+import importlib.metadata
 import json
 import signal
 import subprocess
@@ -9,7 +10,7 @@ import time
 
 import pytest
 import torch
-from example_runner import fail_in_process, run, saved, scalar, start
+from example_runner import REPO, fail_in_process, run, saved, scalar, start
 
 from torchrl_sail import make_sail_env
 
@@ -41,6 +42,11 @@ def test_smoke_hopper_outputs(tmp_path, teacher_dir):
     assert summary["gradient_steps"] == 150
     assert summary["num_promoted"] == 0 and summary["teacher_threshold"] == 148.0
     assert summary["frames_per_second"] > 0 and summary["peak_memory_mb"] > 0
+    # the code that made the run: this checkout's commit and whether tracked files differed
+    head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO, capture_output=True, text=True).stdout.strip()
+    code = summary["provenance"]
+    assert code["commit"] == head and isinstance(code["dirty"], bool) and code["torch_threads"] >= 1
+    assert code["versions"]["torchrl"] == importlib.metadata.version("torchrl")
     assert len(scalar(run_dir, "eval/return")) == 3  # at 1000, 2000, 3000 frames
     for tag in ["train/dense_return", "teacher/threshold", "alpha", "d/accuracy_teacher",
                 "d/accuracy_agent", "d/loss_discriminator", "sail/loss_qvalue",

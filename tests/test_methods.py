@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import math
 import shutil
 
 import pytest
@@ -21,16 +22,23 @@ def outputs_written(run_dir, algo, frames):
     return summary
 
 
-@pytest.mark.parametrize("algo", ["dac", "ddpgfd", "pofd", "td3_delayed", "sail_rnd", "sail_sac"])
+# dac_published at test scale: its actor starts at gradient step 60 (of 50 per 1000 frames) and its lr
+# halves every 1000 frames
+EXTRA = {"dac_published": ["optim.actor_updates_after=60", "optim.actor_lr_decay.every_frames=1000"]}
+
+
+@pytest.mark.parametrize("algo", ["dac", "dac_published", "ddpgfd", "pofd_td3", "td3_delayed", "sail_rnd", "sail_sac"])
 def test_td3_baselines_run(tmp_path, teacher_dir, algo):
     run_dir = tmp_path / algo
-    run(run_dir, f"algo={algo}", f"teacher.path={teacher_dir / HOPPER}", *COMMON)
+    run(run_dir, f"algo={algo}", f"teacher.path={teacher_dir / HOPPER}", *COMMON, *EXTRA.get(algo, []))
     summary = outputs_written(run_dir, algo, 2000)
     assert summary["gradient_steps"] == 100 and summary["num_promoted"] == 0  # nothing beats C this early
     alphas = {value for _, value in scalar(run_dir, "alpha")}
     trains_d = (run_dir / "logs" / "scalars" / "d").exists()
-    if algo == "ddpgfd":  # demonstrations in half of every batch, env reward, no D
+    if algo == "ddpgfd":  # demonstrations in half of every batch, env reward, no D, + the n-step loss
         assert alphas == {0.5} and not trains_d and scalar(run_dir, "sail/env_reward_mean")
+        assert scalar(run_dir, "sail/loss_qvalue_nstep")
+        assert saved(run_dir, "optim_critic")["optim_critic"]["param_groups"][0]["weight_decay"] == 1e-5
     elif algo == "td3_delayed":
         assert alphas == {0.0} and not trains_d and scalar(run_dir, "sail/env_reward_mean")
     elif algo == "sail_rnd":  # SAIL's alpha, D, and a predictor trained beside D
@@ -43,38 +51,82 @@ def test_td3_baselines_run(tmp_path, teacher_dir, algo):
         temperatures = [value for _, value in scalar(run_dir, "sail/temperature")]
         assert temperatures and temperatures[-1] != 1.0 and scalar(run_dir, "sail/entropy")
         assert "log_alpha" in saved(run_dir, "loss")["loss"]
-    else:  # dac, pofd: a discriminator, no teacher rows
+    else:  # dac, dac_published, pofd_td3: a discriminator, no teacher rows
         assert alphas == {0.0} and trains_d and scalar(run_dir, "sail/d_reward_mean")
     replay = saved(run_dir, "replay")["replay"]
     if algo == "dac":
-        # one absorbing transition after every termination, each with the indicator set
-        obs, next_obs = replay["data"]["observation"], replay["data"]["next"]["observation"]
+        # the SAIL authors' DAC: one absorbing transition after every termination, each with the
+        # indicator set and a random action; the terminal and absorbing rows stay terminated
+        data = replay["data"]
+        obs, next_obs = data["observation"], data["next"]["observation"]
         absorbing = obs[:, -1] == 1
         assert obs.shape[-1] == 13 and replay["size"] > 2000 and int(absorbing.sum()) == replay["size"] - 2000
-        assert (next_obs[absorbing, -1] == 1).all() and not replay["data"]["next"]["terminated"].any()
+        assert (next_obs[absorbing, -1] == 1).all() and data["next"]["terminated"][absorbing].all()
+        into = (next_obs[:, -1] == 1) & ~absorbing
+        assert int(into.sum()) == int(absorbing.sum()) and data["next"]["terminated"][into].all()
+        actions = data["action"][absorbing]
+        assert (actions != 0).all() and (actions.abs() <= 1).all() and len(actions.unique(dim=0)) == len(actions)
         # the 425-step demonstration fell: + 1 absorbing transition
         assert scalar(run_dir, "teacher/size")[-1][1] == 426
+        rewards = [value for _, value in scalar(run_dir, "sail/d_reward_mean")]
+        assert all(-math.log(0.99) - 1e-6 <= r <= -math.log(0.01) + 1e-6 for r in rewards)  # clipped D
+    elif algo == "dac_published":
+        # Kostrikov et al.'s absorbing state: bootstrapped through (nothing stays terminated)
+        data = replay["data"]
+        absorbing = data["observation"][:, -1] == 1
+        assert int(absorbing.sum()) == replay["size"] - 2000 > 0 and not data["next"]["terminated"].any()
+        assert (data["action"][absorbing] == 0).all()
+        # the actor's first update is gradient step 60, in the second block; its lr halves per 1000 frames
+        assert [frame for frame, _ in scalar(run_dir, "sail/loss_actor")] == [2000]
+        lrs = dict(scalar(run_dir, "sail/actor_lr"))  # set at each TD3 block, logged until the next
+        assert (lrs[1000], lrs[1500], lrs[2000]) == (1e-3, 1e-3, 5e-4)
+        d = saved(run_dir, "discriminator")["discriminator"]
+        assert not any("obs_norm" in key or "running" in key for key in d)  # D reads raw (s, a)
+    elif algo == "ddpgfd":
+        # the last 10 frames wait for their lookahead; every stored row (agent and demonstration)
+        # has the n-step view of the stream it came from
+        assert replay["size"] == 2000 - 10
+        assert_nstep_view(replay["data"], complete=False)
+        assert_nstep_view(saved(run_dir, "teacher")["teacher"][:425], complete=True)  # the 425-step demonstration
     else:
         assert replay["size"] == 2000
 
     # resume works for every method: a larger budget continues from the 2000-frame checkpoint
-    run(run_dir, f"algo={algo}", f"teacher.path={teacher_dir / HOPPER}", *COMMON, "collector.total_frames=3000",
-        "resume=auto")
+    run(run_dir, f"algo={algo}", f"teacher.path={teacher_dir / HOPPER}", *COMMON, *EXTRA.get(algo, []),
+        "collector.total_frames=3000", "resume=auto")
     assert [frame for frame, _ in scalar(run_dir, "eval/return")] == [1000, 2000, 3000]
+    if algo == "dac_published":  # the schedule continues from the frame count
+        assert dict(scalar(run_dir, "sail/actor_lr"))[3000] == 2.5e-4
     assert json.loads((run_dir / "summary.json").read_text())["gradient_steps"] == 150
 
 
-def test_pofd_reward_is_the_env_reward_plus_the_shaping(tmp_path, teacher_dir):
+def assert_nstep_view(data, *, complete, n=10, gamma=0.99):
+    """Stored rows of one env stream, in order: their ("next_n", ...) entries follow from the 1-step ones."""
+    reward, done = data["next"]["reward"].squeeze(-1).double(), data["next"]["done"].squeeze(-1)
+    view, length = data["next_n"], len(reward)
+    for t in range(length if complete else length - n):  # a stored row's last n successors may not be stored yet
+        k = 1
+        while k < n and not done[t + k - 1]:
+            k += 1
+        assert view["steps_to_next_obs"][t].item() == k
+        expected = sum(gamma ** i * reward[t + i] for i in range(k))
+        assert abs(view["reward"][t].item() - expected) <= 1e-4 * max(1.0, abs(expected))
+        assert (view["observation"][t] == data["next"]["observation"][t + k - 1]).all()
+        assert view["terminated"][t].item() == data["next"]["terminated"][t + k - 1].item()
+    assert done.any()  # episodes ended inside the checked stream
+
+
+def test_pofd_td3_reward_is_the_env_reward_plus_the_shaping(tmp_path, teacher_dir):
     # With coef=0 the shaped reward is the env reward: the first TD3 block (1000 frames, before
     # any D step draws from the random stream) samples the same rows as td3_delayed's, and its
     # mean reward is the same (the shaping's arithmetic is tested in test_discriminator_reward).
     first = {}
-    for algo, extra in (("pofd", ["algo.reward.coef=0.0", "algo.discriminator_agent_data=replay"]),
+    for algo, extra in (("pofd_td3", ["algo.reward.coef=0.0", "algo.discriminator_agent_data=replay"]),
                         ("td3_delayed", [])):
         run(tmp_path / algo, f"algo={algo}", f"teacher.path={teacher_dir / HOPPER}", *COMMON, *extra)
         first[algo] = scalar(tmp_path / algo, "sail/env_reward_mean" if algo == "td3_delayed" else "sail/d_reward_mean")[0]
-    assert first["pofd"][0] == first["td3_delayed"][0] == 1000
-    assert first["pofd"][1] == pytest.approx(first["td3_delayed"][1], rel=1e-6)
+    assert first["pofd_td3"][0] == first["td3_delayed"][0] == 1000
+    assert first["pofd_td3"][1] == pytest.approx(first["td3_delayed"][1], rel=1e-6)
 
 
 def test_bc_is_offline_and_skipped_when_finished(tmp_path, teacher_dir):
@@ -96,6 +148,11 @@ def test_bc_is_offline_and_skipped_when_finished(tmp_path, teacher_dir):
     assert result["dense_return"]["mean"] == pytest.approx(summary["final_eval_return"], rel=1e-6)
 
 
+def norm_count(run_dir) -> int:
+    """How many observations (resets and steps) the training env's normaliser has seen, per the checkpoint."""
+    return int(saved(run_dir, "observation_norm")["observation_norm"]["_extra_state"]["count.-|-.observation"])
+
+
 def test_gail_runs_on_policy_and_resumes(tmp_path, teacher_dir):
     run_dir = tmp_path / "gail"
     args = ["algo=gail", "env=Hopper-v4", f"teacher.path={teacher_dir / HOPPER}", "algo.ppo.frames_per_batch=512",
@@ -106,13 +163,58 @@ def test_gail_runs_on_policy_and_resumes(tmp_path, teacher_dir):
     assert summary["gradient_steps"] == 4 * 10 * 8  # batches x PPO epochs x minibatches of 64
     assert scalar(run_dir, "d/loss_discriminator") and scalar(run_dir, "ppo/loss_objective")
     assert [frame for frame, _ in scalar(run_dir, "eval/return")] == [1024, 2048]
+    # TorchRL's lr annealing: the k-th of 320 updates (4 batches x 10 epochs x 8 minibatches) runs at
+    # 3e-4 * (1 - (k - 1) / 320); logged at each batch's last update, saved with the optimizer
+    assert scalar(run_dir, "ppo/lr") == [(512 * b, pytest.approx(3e-4 * (1 - (80 * b - 1) / 320), rel=1e-9))
+                                         for b in (1, 2, 3, 4)]
+    assert [group["lr"] for group in saved(run_dir, "optim_ppo")["optim_ppo"]["param_groups"]] == [
+        pytest.approx(3e-4 / 320, rel=1e-9)] * 2  # the actor's and the critic's
+    # The training env's normaliser is checkpointed: 2048 steps and one update per reset
+    count = norm_count(run_dir)
+    assert 2048 < count < 2048 + 2048
+    # D compares raw observations with the teacher's: every row it saw (teacher and agent) has a
+    # Hopper height z > 0.7 (the healthy range: a root observation never terminated), so its running
+    # mean of z is > 0.7 with a small spread; normalised agent rows (z near 0 +- 1) give 0.60 and 0.62
+    d = saved(run_dir, "discriminator")["discriminator"]
+    n = d["module.obs_norm.count"]
+    mean = d["module.obs_norm.sum"][0] / n
+    std = (d["module.obs_norm.sumsq"][0] / n - mean ** 2).sqrt()
+    assert n > 4000 and mean > 0.7 and std < 0.5
+
     run(run_dir, *args, "collector.total_frames=3072")  # continued from the 2048-frame checkpoint
     assert [frame for frame, _ in scalar(run_dir, "eval/return")] == [1024, 2048, 3072]
-    assert json.loads((run_dir / "summary.json").read_text())["gradient_steps"] == 6 * 10 * 8
-    # evaluate.py loads the PPO actor of the last checkpoint
-    evaluate(f"run_dir={run_dir}", "episodes=1", f"out={tmp_path / 'eval.json'}")
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert summary["gradient_steps"] == 6 * 10 * 8
+    # the budget grew to 480 updates: the 480th runs at 3e-4 / 480
+    assert scalar(run_dir, "ppo/lr")[-1] == (3072, pytest.approx(3e-4 / 480, rel=1e-9))
+    # the resumed run went on from the saved statistics: + 1024 steps + its first reset (and any
+    # others); restarted from scratch it would hold at most 1 + 1024 + 1024 < count + 1024
+    assert count + 1024 < norm_count(run_dir) <= count + 2048
+    # evaluate.py loads the PPO actor and the frozen statistics of the last checkpoint: on the run's
+    # eval seed it reproduces the run's final evaluation (the resumed run's first, on a fresh eval env)
+    evaluate(f"run_dir={run_dir}", "seed=10000", "episodes=1", f"out={tmp_path / 'eval.json'}")
     result = json.loads((tmp_path / "eval.json").read_text())
     assert result["algo"] == "gail" and result["checkpoint_frames"] == 3072 and result["length"]["values"][0] >= 1
+    assert result["dense_return"]["mean"] == pytest.approx(summary["final_eval_return"], rel=1e-6)
+
+
+def test_pofd_is_ppo_on_the_shaped_delayed_reward(tmp_path, teacher_dir):
+    run_dir = tmp_path / "pofd"
+    run(run_dir, "algo=pofd", "env=Hopper-v4", f"teacher.path={teacher_dir / HOPPER}",
+        "algo.ppo.frames_per_batch=256", "algo.ppo.epochs=1", "algo.reward.coef_decay=0.5",
+        "collector.total_frames=1024", "eval.every_frames=1024", "eval.episodes=1",
+        "checkpoint.every_frames=1024", "logger.backends=[csv]")
+    summary = outputs_written(run_dir, "pofd", 1024)
+    assert summary["gradient_steps"] == 4 * 1 * 4  # batches x PPO epochs x minibatches of 64
+    # lambda_1 = 0.1 * 0.5^i at the i-th batch
+    assert scalar(run_dir, "pofd/lambda_1") == [(256, 0.1), (512, 0.05), (768, 0.025), (1024, 0.0125)]
+    # PPO learns from the delayed env reward plus lambda_1 * -log(1 - D) > 0 (the shaping's
+    # arithmetic is tested in test_discriminator_reward): above the env reward in every batch
+    env, shaped = scalar(run_dir, "sail/env_reward_mean"), scalar(run_dir, "sail/d_reward_mean")
+    assert [frame for frame, _ in env] == [frame for frame, _ in shaped] == [256, 512, 768, 1024]
+    assert any(value > 0 for _, value in env)  # episodes ended: the delayed reward came
+    assert all(s > e for (_, e), (_, s) in zip(env, shaped))
+    assert saved(run_dir, "observation_norm")
 
 
 def test_resume_auto_continues_skips_and_restarts(tmp_path, teacher_dir):

@@ -16,6 +16,7 @@ from torch.overrides import TorchFunctionMode
 from torchrl.data import Bounded
 from torchrl.modules import MLP, TanhModule, ValueOperator
 from torchrl.objectives import SoftUpdate, TD3Loss
+from torchrl.objectives.value import TD0Estimator
 
 from torchrl_sail import SAILLoss, TD3Update
 
@@ -55,11 +56,12 @@ def make_update(loss, implementation, *, fused_adam=False, **kwargs):
         target_updater=updater, implementation=implementation, **kwargs)
 
 
-def make_batch(spec, *, seed, device="cpu", n_teacher=B // 4):
+def make_batch(spec, *, seed, device="cpu", n_teacher=B // 4, steps_key=None, nstep=False):
+    """Random transitions; ``steps_key``: a step count 1..10 there; ``nstep``: an n-step view under "next_n"."""
     g = torch.Generator().manual_seed(seed)
     terminated = torch.rand(B, 1, generator=g) < 0.2
     truncated = torch.rand(B, 1, generator=g) < 0.1
-    return TensorDict({
+    batch = TensorDict({
         "observation": torch.randn(B, OBS, generator=g),
         "action": spec.low + (spec.high - spec.low) * torch.rand(B, ACT, generator=g),
         "is_teacher": torch.arange(B) < n_teacher,
@@ -68,7 +70,17 @@ def make_batch(spec, *, seed, device="cpu", n_teacher=B // 4):
         ("next", "terminated"): terminated,
         ("next", "truncated"): truncated,
         ("next", "done"): terminated | truncated,
-    }, [B]).to(device)
+    }, [B])
+    if steps_key is not None:
+        batch[steps_key] = torch.randint(1, 11, (B, 1), generator=g)
+    if nstep:
+        terminated_n = terminated | (torch.rand(B, 1, generator=g) < 0.3)  # the window reaches further
+        truncated_n = ~terminated_n & (torch.rand(B, 1, generator=g) < 0.1)
+        batch["next_n"] = TensorDict({
+            "observation": torch.randn(B, OBS, generator=g), "reward": 3 * torch.randn(B, 1, generator=g),
+            "terminated": terminated_n, "truncated": truncated_n, "done": terminated_n | truncated_n,
+            "steps_to_next_obs": torch.randint(1, 11, (B, 1), generator=g)}, [B])
+    return batch.to(device)
 
 
 def recording(update):
@@ -146,6 +158,38 @@ class TestTD3Update:
     def test_fused_equals_plain_td3loss(self):
         assert_same(run_both(UNIT, loss_kwargs={"cls": TD3Loss}))
 
+    @pytest.mark.parametrize("device", DEVICES)
+    def test_fused_equals_loss_steps_to_next_obs(self, device):
+        # n-step transitions (e.g. TorchRL's MultiStepTransform): gamma ** steps_to_next_obs
+        assert_same(run_both(UNIT, device=device, batch_kwargs={"steps_key": "steps_to_next_obs"}))
+
+    def test_fused_reads_the_estimators_steps_key(self):
+        # the step count is read where the loss's TD0Estimator reads it, renamed or not
+        torch.manual_seed(0)
+        base = make_loss(UNIT)
+        base.value_estimator.set_keys(steps_to_next_obs=("my", "steps"))
+        out = {}
+        for implementation in ("loss", "fused"):
+            update = make_update(copy.deepcopy(base), implementation)
+            torch.manual_seed(1)
+            out[implementation] = [update(make_batch(UNIT, seed=i, steps_key=("my", "steps")), update_actor=False)
+                                   for i in range(2)]
+        for a, b in zip(out["loss"], out["fused"]):
+            torch.testing.assert_close(b["loss_qvalue"], a["loss_qvalue"], atol=1e-5, rtol=1e-5)
+
+    @pytest.mark.parametrize("device", DEVICES)
+    @pytest.mark.parametrize("loss_kwargs, set_keys", [
+        ({}, None),
+        ({"mixing": "weights", "alpha": 0.3}, None),  # per-row weights in both losses
+        ({"loss_function": "smooth_l1"}, {"terminated": "done"}),  # the example's truncation_is_terminal
+    ])
+    def test_fused_equals_loss_nstep(self, device, loss_kwargs, set_keys):
+        # DDPGfD's critic: L_1 + lambda_1 L_n on the same rows
+        out = run_both(UNIT, device=device, loss_kwargs=loss_kwargs, set_keys=set_keys, batch_kwargs={"nstep": True},
+                       nstep_key="next_n", nstep_weight=0.7)
+        assert "loss_qvalue_nstep" in out["fused"][0][0]
+        assert_same(out)
+
     def test_first_step_by_hand(self):
         """One critic step against a hand-written TD3 target and MSE on the loss's parameters."""
         torch.manual_seed(0)
@@ -176,6 +220,46 @@ class TestTD3Update:
         torch.testing.assert_close(metrics["loss_qvalue"], expected)
         assert len(grads) == 1  # the critic step only
 
+    @pytest.mark.parametrize("implementation", ["fused", "loss"])
+    def test_nstep_critic_step_by_hand(self, implementation):
+        """DDPGfD's two-loss critic step against hand-written TD3 targets, gamma^k for the n-step one.
+
+        A ("next", "steps_to_next_obs") entry is not where TorchRL's estimator reads the step
+        count (the root is): it changes nothing, in either implementation."""
+        torch.manual_seed(0)
+        loss = make_loss(UNIT, num_cells=(8,))
+        update = make_update(loss, implementation, nstep_key="next_n", nstep_weight=0.7)
+        batch = make_batch(UNIT, seed=3, nstep=True)
+        batch["next", "steps_to_next_obs"] = torch.full((B, 1), 5)
+        params = {k: v.detach().clone() for k, v in loss.state_dict().items()}
+
+        def mlp(prefix, x, i=None):
+            w = [params[f"{prefix}.{n}.weight"] for n in (0, 2)]
+            b = [params[f"{prefix}.{n}.bias"] for n in (0, 2)]
+            if i is not None:
+                w, b = [t[i] for t in w], [t[i] for t in b]
+            return torch.relu(x @ w[0].T + b[0]) @ w[1].T + b[1]
+
+        def target(nxt, noise, gamma):
+            next_obs = nxt["observation"]
+            next_act = (mlp("target_actor_network_params.module.0.module", next_obs).tanh() + noise).clamp(-1, 1)
+            next_q = torch.min(*[mlp("target_qvalue_network_params.module", torch.cat([next_act, next_obs], -1), i)
+                                 for i in range(2)])
+            return nxt["reward"] + gamma * (~nxt["terminated"]) * next_q
+
+        torch.manual_seed(5)
+        noise_1, noise_n = [(torch.randn(B, ACT) * 0.2).clamp(-0.5, 0.5) for _ in range(2)]
+        y_1 = target(batch["next"], noise_1, 0.9)
+        y_n = target(batch["next_n"], noise_n, 0.9 ** batch["next_n", "steps_to_next_obs"].float())
+        q = [mlp("qvalue_network_params.module", torch.cat([batch["action"], batch["observation"]], -1), i)
+             for i in range(2)]
+        loss_n = sum(((qi - y_n) ** 2).mean() for qi in q)
+        expected = sum(((qi - y_1) ** 2).mean() for qi in q) + 0.7 * loss_n
+        torch.manual_seed(5)
+        metrics = update(batch, update_actor=False)
+        torch.testing.assert_close(metrics["loss_qvalue"], expected)
+        torch.testing.assert_close(metrics["loss_qvalue_nstep"], loss_n)
+
     def test_actor_step_moves_targets_by_tau(self):
         torch.manual_seed(0)
         loss = make_loss(UNIT)
@@ -193,15 +277,36 @@ class TestTD3Update:
                 source = after[key[len("target_"):]]
                 torch.testing.assert_close(after[key], before[key] + 0.05 * (source - before[key]))
 
-    def test_no_host_sync(self):
+    @pytest.mark.parametrize("implementation", ["fused", "loss"])
+    def test_actor_gradient_clipped_to_its_global_norm(self, implementation):
+        # With SGD at lr 1 an actor step moves the parameters by minus the (clipped) gradient:
+        # a tiny bound makes the whole move's norm exactly that bound.
+        torch.manual_seed(0)
+        loss = make_loss(UNIT)
+        params = list(loss.actor_network_params.flatten_keys().values())
+        update = TD3Update(loss, critic_optimizer=torch.optim.SGD(loss.qvalue_network_params.flatten_keys().values(), lr=1.0),
+                           actor_optimizer=torch.optim.SGD(params, lr=1.0), target_updater=SoftUpdate(loss, tau=0.05),
+                           implementation=implementation, actor_max_grad_norm=1e-3)
+        before = [p.detach().clone() for p in params]
+        update.actor_step(make_batch(UNIT, seed=0))
+        moved = torch.cat([(p.detach() - b).flatten() for p, b in zip(params, before)])
+        assert moved.norm().item() == pytest.approx(1e-3, rel=1e-4)
+        with pytest.raises(ValueError, match="actor_max_grad_norm must be > 0"):
+            make_update(make_loss(UNIT), implementation, actor_max_grad_norm=0.0)
+
+    def test_fused_equals_loss_with_actor_clipping(self):
+        assert_same(run_both(UNIT, actor_max_grad_norm=0.5))
+
+    @pytest.mark.parametrize("nstep", [False, True])
+    def test_no_host_sync(self, nstep):
         """The fused step never reads a tensor value on the host (device-agnostic check).
 
         With fused Adam, as the example uses: the default single-tensor Adam reads its step
-        counter with ``.item()``."""
+        counter with ``.item()``. Also DDPGfD's two-loss critic step (``nstep``)."""
         torch.manual_seed(0)
         loss = make_loss(UNIT, mixing="weights")
-        update = make_update(loss, "fused", fused_adam=True)
-        batch = make_batch(UNIT, seed=0)
+        update = make_update(loss, "fused", fused_adam=True, **({"nstep_key": "next_n"} if nstep else {}))
+        batch = make_batch(UNIT, seed=0, nstep=nstep)
         update(batch, update_actor=True)  # first call: optimizer state allocation
         with _HostReads() as reads:
             update(batch, update_actor=True)
@@ -281,6 +386,25 @@ class TestTD3Update:
         td1.make_value_estimator(gamma=0.9, lmbda=0.9, value_type="tdlambda")
         with pytest.raises(ValueError, match="TD\\(0\\) target"):
             make_update(td1, "fused")
+        # TD(0) settings the fused step does not compute: refused, not approximated
+        averaged = make_loss(UNIT)
+        averaged.make_value_estimator(gamma=0.9, average_rewards=True)
+        with pytest.raises(ValueError, match="average_rewards=True"):
+            make_update(averaged, "fused")
+        make_update(averaged, "loss")
+        own_net = make_loss(UNIT)
+        own_net.make_value_estimator(TD0Estimator(gamma=0.9, value_network=own_net.qvalue_network))
+        with pytest.raises(ValueError, match="its own value_network"):
+            make_update(own_net, "fused")
+        renamed = make_loss(UNIT)
+        renamed.value_estimator.set_keys(value="other_value")
+        with pytest.raises(ValueError, match="reads the next value from 'other_value'"):
+            make_update(renamed, "fused")
+        for kwargs, match in [({"nstep_key": "next"}, "nstep_key='next' is the 1-step"),
+                              ({"nstep_key": "next_n", "nstep_weight": 0.0}, "lambda_1\\) must be a finite number > 0"),
+                              ({"nstep_key": "next_n", "nstep_weight": float("nan")}, "must be a finite number")]:
+            with pytest.raises(ValueError, match=match):
+                make_update(make_loss(UNIT), "loss", **kwargs)
 
 
 class _HostReads(TorchFunctionMode):

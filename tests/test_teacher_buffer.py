@@ -1,4 +1,4 @@
-"""Tests for the teacher buffer: TrajectoryWriter, TopKTrajectoryWriter, FIFOTrajectoryWriter, TeacherReplayBuffer."""
+"""Tests for the teacher buffer: TrajectoryWriter, its TopK, Union and FIFO writers, TeacherReplayBuffer."""
 from __future__ import annotations
 
 import argparse
@@ -16,6 +16,7 @@ from torchrl_sail import (
     TeacherReplayBuffer,
     TopKTrajectoryWriter,
     TRANSITION_KEYS,
+    UnionTrajectoryWriter,
 )
 
 
@@ -63,6 +64,10 @@ def topk(k, length=20, **kwargs):
 
 def fifo(k, capacity, **kwargs):
     return TeacherReplayBuffer(FIFOTrajectoryWriter(k=k, capacity=capacity), **kwargs)
+
+
+def union(k, capacity=400, **kwargs):
+    return TeacherReplayBuffer(UnionTrajectoryWriter(k=k, capacity=capacity), **kwargs)
 
 
 def offer(rb, traj) -> bool:
@@ -148,6 +153,35 @@ class RefFifo:
 
     def live_returns(self):
         return sorted(self.returns[tid] for tid in {c[0] for c in self.codes()})
+
+
+class RefUnion:
+    """The paper's literal rule: every admitted trajectory kept; C = min of the K best scores."""
+
+    def __init__(self, k):
+        self.k = k
+        self.kept = []  # (r_e, id, length) in admission order
+        self.scores = []
+
+    @property
+    def threshold(self):
+        return self.scores[0] if self.scores else -math.inf
+
+    def demo(self, r, tid, length):
+        self.kept.append((float(r), tid, length))
+        self.scores = sorted([*self.scores, float(r)])[-self.k:]
+
+    def offer(self, r, tid, length):
+        accepted = r > self.threshold
+        if accepted:
+            self.demo(r, tid, length)
+        return accepted
+
+    def codes(self):
+        return [(tid, t) for _, tid, length in self.kept for t in range(length)]
+
+    def window(self):
+        return list(self.scores)
 
 
 episode = st.tuples(st.integers(-3, 6), st.integers(1, 20))
@@ -290,6 +324,48 @@ class TestFIFOTrajectoryWriter:
         assert rb.writer.window == [1.0, 2.0, 3.0]  # the demo's score stays in W_k
 
 
+class TestUnionTrajectoryWriter:
+    @settings(max_examples=60, deadline=None)
+    @given(k=st.integers(1, 4), demos=st.lists(episode, max_size=3), offers=st.lists(episode, max_size=15))
+    def test_matches_reference(self, k, demos, offers):
+        rb = union(k)
+        ref = RefUnion(k)
+        run_scenario(rb, ref, demos, offers)
+        # every admitted trajectory, in admission order, whole
+        assert len(rb) == len(ref.codes())
+        if ref.kept:
+            assert codes_of(stored(rb)) == ref.codes()
+        assert rb.writer.returns == sorted(r for r, _, _ in ref.kept)
+
+    def test_hand_computed_threshold(self):
+        rb = union(2, batch_size=20_000)
+        for code, r_e in enumerate([5.0, 1.0, 9.0]):  # three demonstrations: all kept, W_k = [5, 9]
+            rb.add_demonstrations(make_traj(r_e, 2, code=code))
+        assert (rb.writer.threshold, rb.writer.window) == (5.0, [5.0, 9.0])
+        steps = [
+            (5.0, False, 5.0, [5.0, 9.0]),  # strict >
+            (6.0, True, 6.0, [6.0, 9.0]),
+            (7.0, True, 7.0, [7.0, 9.0]),
+            (6.5, False, 7.0, [7.0, 9.0]),
+            (10.0, True, 9.0, [9.0, 10.0]),
+        ]
+        for code, (r_e, accepted, threshold, window) in enumerate(steps, start=3):
+            assert offer(rb, make_traj(r_e, 3, code=code)) is accepted
+            assert (rb.writer.threshold, rb.writer.window) == (threshold, window)
+        # nothing was evicted: 3 demonstrations of 2 steps, 3 promoted trajectories of 3
+        assert rb.writer.returns == [1.0, 5.0, 6.0, 7.0, 9.0, 10.0] and len(rb) == 15
+        counts = Counter(codes_of(rb.sample()))
+        assert {c for c, _ in counts} == {0, 1, 2, 4, 5, 7}
+        assert all(abs(n - 20_000 / 15) < 150 for n in counts.values())  # uniform over rows (std ~36)
+
+    def test_full_buffer_raises_before_writing(self):
+        rb = union(2, capacity=8)
+        rb.add_demonstrations(make_traj(1.0, 5, code=0))
+        with pytest.raises(RuntimeError, match="5 of its capacity=8 rows hold trajectories and one of 4 steps"):
+            rb.extend(make_traj(2.0, 4, code=1))
+        assert len(rb) == 5 and codes_of(stored(rb)) == [(0, t) for t in range(5)]
+
+
 class TestTrajectoryWriter:
     def test_extend_carries_unfinished_episodes_across_batches(self):
         # stream 0: A (3 steps, r=5) then B (5, r=7); stream 1: C (6, r=6) then D (2, r=7)
@@ -383,7 +459,8 @@ def _history():
 
 
 def _build(kind):
-    return fifo(3, 25, batch_size=16) if kind == "fifo" else topk(3, length=12, batch_size=16)
+    return {"fifo": lambda: fifo(3, 25, batch_size=16), "union": lambda: union(3, 300, batch_size=16),
+            "topk": lambda: topk(3, length=12, batch_size=16)}[kind]()
 
 
 def _state(rb):
@@ -400,7 +477,7 @@ def _roundtrip(state):
 
 
 class TestTeacherReplayBufferCheckpoint:
-    @pytest.mark.parametrize("kind", ["topk", "fifo"])
+    @pytest.mark.parametrize("kind", ["topk", "union", "fifo"])
     def test_state_dict_round_trip(self, kind):
         trajs = _history()
         rb = _build(kind)
@@ -423,7 +500,7 @@ class TestTeacherReplayBufferCheckpoint:
             fresh.extend(traj)
             assert _state(fresh) == _state(rb)
 
-    @pytest.mark.parametrize("kind", ["topk", "fifo"])
+    @pytest.mark.parametrize("kind", ["topk", "union", "fifo"])
     def test_mid_episode_checkpoint_completes_like_uninterrupted(self, kind):
         # stream 0: A (7 steps, r=6); stream 1: B (4 steps, r=2) then C (3 steps, r=9)
         data = torch.stack([make_traj(6.0, 7, code=1),
@@ -453,7 +530,7 @@ class TestTeacherReplayBufferCheckpoint:
         # by hand: B (2 > C=1), A (6 > 1) and C (9 > 1) are promoted, A and C whole
         assert fresh.writer.window == [2.0, 6.0, 9.0] and fresh.writer.num_promoted == 3
         expected = [(2, t) for t in range(4)] + [(1, t) for t in range(7)] + [(3, t) for t in range(3)]
-        if kind == "fifo":  # the ring keeps the demonstration; the top-3 evicted it
+        if kind != "topk":  # the ring and the union keep the demonstration; the top-3 evicted it
             expected += [(0, t) for t in range(5)]
         assert sorted(codes_of(stored(fresh))) == sorted(expected)
 

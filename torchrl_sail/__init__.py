@@ -16,6 +16,7 @@ from torchrl_sail.data import (
     TeacherReplayBuffer,
     TopKTrajectoryWriter,
     TrajectoryWriter,
+    UnionTrajectoryWriter,
     TRANSITION_KEYS,
 )
 from torchrl_sail.divergence import DivergenceCheck, DivergenceError
@@ -24,6 +25,9 @@ from torchrl_sail.envs import (
     DelayedRewardTransform,
     DiscriminatorReward,
     make_sail_env,
+    NStepTransform,
+    nstep_view,
+    observation_normalizer,
     RNDReward,
     TimeFeature,
 )
@@ -45,6 +49,7 @@ __all__ = [
     "DivergenceError",
     "FIFOTrajectoryWriter",
     "MixedReplayBuffer",
+    "NStepTransform",
     "RNDReward",
     "RunningObsNorm",
     "SAILLoss",
@@ -54,11 +59,14 @@ __all__ = [
     "TimeFeature",
     "TopKTrajectoryWriter",
     "TrajectoryWriter",
+    "UnionTrajectoryWriter",
     "check_demonstration_dims",
     "export_minari_dataset",
     "load_demonstrations",
     "load_minari_demonstrations",
     "load_sb_demonstrations",
     "make_sail_env",
+    "nstep_view",
+    "observation_normalizer",
     "save_demonstrations",
 ]

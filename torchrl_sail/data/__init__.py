@@ -15,6 +15,7 @@ from torchrl_sail.data.teacher_buffer import (
     TeacherReplayBuffer,
     TopKTrajectoryWriter,
     TrajectoryWriter,
+    UnionTrajectoryWriter,
 )
 
 __all__ = [
@@ -25,6 +26,7 @@ __all__ = [
     "TeacherReplayBuffer",
     "TopKTrajectoryWriter",
     "TrajectoryWriter",
+    "UnionTrajectoryWriter",
     "check_demonstration_dims",
     "export_minari_dataset",
     "load_demonstrations",

@@ -8,8 +8,9 @@ rewards admitted so far, so ``C`` only rises and the teacher data keeps improvin
 As in TorchRL's :class:`~torchrl.data.TensorDictMaxValueWriter`, the ranking rule lives in a
 :class:`~torchrl.data.replay_buffers.writers.Writer`: :class:`TrajectoryWriter` splits what
 it is given into trajectories and applies the promotion test, and two writers decide where
-an admitted trajectory goes: :class:`TopKTrajectoryWriter` (the paper: keep the K best
-trajectories) and :class:`FIFOTrajectoryWriter` (the authors' code: a ring of transitions).
+an admitted trajectory goes: :class:`TopKTrajectoryWriter` (keep the K best trajectories, the
+default), :class:`UnionTrajectoryWriter` (the paper's literal ``R_T <- R_T U tau``: keep every
+admitted trajectory) and :class:`FIFOTrajectoryWriter` (the authors' code: a ring of transitions).
 :class:`TeacherReplayBuffer` is a :class:`~torchrl.data.TensorDictReplayBuffer` built around
 one of them. (``TensorDictMaxValueWriter`` ranks one storage slot at a time: it cannot hold
 variable-length trajectories in a transition storage nor express the window rule.)
@@ -30,7 +31,13 @@ from torchrl.data.replay_buffers.writers import Writer
 
 from torchrl_sail.data.keys import TRANSITION_KEYS
 
-__all__ = ["FIFOTrajectoryWriter", "TeacherReplayBuffer", "TopKTrajectoryWriter", "TrajectoryWriter"]
+__all__ = [
+    "FIFOTrajectoryWriter",
+    "TeacherReplayBuffer",
+    "TopKTrajectoryWriter",
+    "TrajectoryWriter",
+    "UnionTrajectoryWriter",
+]
 
 _MASK_KEY = ("collector", "mask")
 
@@ -220,6 +227,12 @@ class TrajectoryWriter(Writer):
         self._write_count += rows.numel()
         self._stored_rows = None
 
+    def _enter_window(self, r_e: float) -> None:
+        """Keeps ``W_k`` the ``K`` best admitted rewards (the window of the ring and union rules)."""
+        bisect.insort(self._window, r_e)
+        if len(self._window) > self.k:
+            self._window.pop(0)
+
     def _new_trajectory(self, r_e: float) -> int:
         tid = self._next_id
         self._next_id += 1
@@ -323,7 +336,20 @@ class TopKTrajectoryWriter(TrajectoryWriter):
         return slot_rows[:length]
 
 
-class FIFOTrajectoryWriter(TrajectoryWriter):
+class _AppendingWriter(TrajectoryWriter):
+    """A writer that appends admitted trajectories at a cursor (the ring and the union rules)."""
+
+    _placement_state = ("_cursor",)
+
+    def __init__(self, *, capacity: int, k: int = 10, **kwargs) -> None:
+        super().__init__(k=k, capacity=capacity, **kwargs)
+
+    def _empty(self, empty_write_count: bool = True) -> None:
+        super()._empty(empty_write_count)
+        self._cursor = 0
+
+
+class FIFOTrajectoryWriter(_AppendingWriter):
     """The authors' teacher buffer: a FIFO ring of transitions with a score window of size K.
 
     Admitted trajectories are appended whole and overwrite the oldest transitions when the
@@ -338,15 +364,6 @@ class FIFOTrajectoryWriter(TrajectoryWriter):
         **kwargs: ``keys``, ``rank_key``, ``done_key`` of :class:`TrajectoryWriter`.
     """
 
-    _placement_state = ("_cursor",)
-
-    def __init__(self, *, capacity: int, k: int = 10, **kwargs) -> None:
-        super().__init__(k=k, capacity=capacity, **kwargs)
-
-    def _empty(self, empty_write_count: bool = True) -> None:
-        super()._empty(empty_write_count)
-        self._cursor = 0
-
     def _place(self, trajectory: TensorDictBase, r_e: float) -> torch.Tensor:
         length = trajectory.shape[0]
         if length > self.capacity:
@@ -360,9 +377,59 @@ class FIFOTrajectoryWriter(TrajectoryWriter):
             if tid >= 0 and tid not in alive:
                 del self._returns[tid]
         self._cursor = (self._cursor + length) % self.capacity
-        bisect.insort(self._window, r_e)
-        if len(self._window) > self.k:
-            self._window.pop(0)
+        self._enter_window(r_e)
+        return rows
+
+
+class UnionTrajectoryWriter(_AppendingWriter):
+    """The paper's literal rule: ``R_T <- R_T U tau``, every admitted trajectory is kept.
+
+    Admitted trajectories are appended and never evicted, so sampling is uniform over the
+    demonstrations and every promoted trajectory; ``W_k`` is a separate list of the ``K`` best
+    admitted rewards (demonstrations included) and only sets the threshold ``C``. Size
+    ``capacity`` for the demonstrations plus every frame the run can promote (its total frames):
+    a trajectory that does not fit raises before anything is written.
+
+    Keyword Args:
+        capacity (int): number of transition rows (demonstration rows + the run's frames).
+        k (int): size of the score window. Defaults to ``10``.
+        **kwargs: ``keys``, ``rank_key``, ``done_key`` of :class:`TrajectoryWriter`.
+
+    Examples:
+        >>> import torch
+        >>> from tensordict import TensorDict
+        >>> from torchrl_sail import TeacherReplayBuffer, UnionTrajectoryWriter
+        >>> def episode(r_e, T=5):
+        ...     reward, done = torch.zeros(T, 1), torch.zeros(T, 1, dtype=torch.bool)
+        ...     reward[-1], done[-1] = r_e, True
+        ...     return TensorDict({"observation": torch.randn(T, 3), "action": torch.zeros(T, 2),
+        ...         ("next", "observation"): torch.randn(T, 3), ("next", "reward"): reward,
+        ...         ("next", "done"): done, ("next", "terminated"): done.clone(),
+        ...         ("next", "truncated"): torch.zeros_like(done)}, batch_size=[T])
+        >>> rb = TeacherReplayBuffer(UnionTrajectoryWriter(k=2, capacity=100), batch_size=4)
+        >>> rb.add_demonstrations(episode(148.0))
+        1
+        >>> for r_e in (150.0, 147.0, 152.0, 149.0):  # 147 < C = 148, 149 < C = 150: rejected
+        ...     _ = rb.extend(episode(r_e))
+        >>> rb.writer.window, rb.writer.threshold  # the demonstration left W_k ...
+        ([150.0, 152.0], 150.0)
+        >>> rb.writer.returns, len(rb)  # ... but not R_T
+        ([148.0, 150.0, 152.0], 15)
+    """
+
+    def _place(self, trajectory: TensorDictBase, r_e: float) -> torch.Tensor:
+        length = trajectory.shape[0]
+        if self._cursor + length > self.capacity:
+            raise RuntimeError(
+                f"The teacher buffer is full: {self._cursor} of its capacity={self.capacity} rows hold "
+                f"trajectories and one of {length} steps was admitted. Size capacity for the "
+                f"demonstrations plus every frame of the run."
+            )
+        rows = torch.arange(self._cursor, self._cursor + length)
+        self._write(rows, trajectory)
+        self._row_trajectory[rows] = self._new_trajectory(r_e)
+        self._cursor += length
+        self._enter_window(r_e)
         return rows
 
 
@@ -393,9 +460,9 @@ class TeacherReplayBuffer(TensorDictReplayBuffer):
     read from ``rb.writer``; ``len(rb)`` is the number of stored transitions.
 
     Args:
-        writer (TrajectoryWriter, optional): :class:`TopKTrajectoryWriter` (the paper,
-            default ``TopKTrajectoryWriter(k=10)``) or :class:`FIFOTrajectoryWriter`
-            (the authors' code).
+        writer (TrajectoryWriter, optional): :class:`TopKTrajectoryWriter` (the K best
+            trajectories, default ``TopKTrajectoryWriter(k=10)``), :class:`UnionTrajectoryWriter`
+            (the paper's literal union) or :class:`FIFOTrajectoryWriter` (the authors' code).
 
     Keyword Args:
         device (torch.device or str): device of the storage. Defaults to ``"cpu"``.

@@ -54,6 +54,12 @@ class AbsorbingStateTransform(Transform):
     A loss that bootstraps on ``terminated`` (TD3's default, not ``set_keys(terminated="done")``)
     then learns ``Q(s_a) = r(s_a) + γ Q(s_a)``, as DAC does.
 
+    With ``bootstrap=False`` (the SAIL authors' DAC baseline) both rows keep ``terminated =
+    done = True``: the absorbing state only marks the end for the discriminator, and no value
+    flows through it. With ``action_spec``, the absorbing transitions store an action drawn
+    uniformly from it instead of the zero action (the SAIL authors' DAC stores
+    ``env.action_space.sample()`` for the agent and the zero action for the demonstrations).
+
     **The policy at** ``s_a`` (:meth:`action_mask`): append ``transform.action_mask()`` to a
     deterministic actor so that ``pi(s_a) = 0``, the action of the stored absorbing
     transitions. The TD target at ``s_a`` then reads the critic where it is trained, and the
@@ -70,6 +76,12 @@ class AbsorbingStateTransform(Transform):
             Defaults to ``"action"``.
         reward_key (NestedKey, optional): the reward under ``"next"``, zeroed in absorbing
             transitions. Defaults to ``"reward"``.
+        bootstrap (bool, optional): ``True``: the terminal row bootstraps through ``s_a``
+            (DAC). ``False``: the terminal and absorbing rows stay terminated (the SAIL
+            authors' DAC). Defaults to ``True``.
+        action_spec (TensorSpec, optional): when given, absorbing transitions store a random
+            action from it (``action_spec.rand()``); otherwise the zero action. Defaults to
+            ``None``.
 
     Examples:
         >>> import torch
@@ -91,6 +103,13 @@ class AbsorbingStateTransform(Transform):
         ([False, False, False, False, False], [False, False, True, False, True])
         >>> out["action"].squeeze(-1).tolist(), out["next", "reward"].squeeze(-1).tolist()
         ([1.0, 1.0, 0.0, 1.0, 1.0], [1.0, 1.0, 0.0, 1.0, 1.0])
+        >>> from torchrl.data import Bounded
+        >>> authors = AbsorbingStateTransform(bootstrap=False, action_spec=Bounded(-1.0, 1.0, (1,)))
+        >>> out = authors(data)  # the SAIL authors' DAC: no bootstrap through s_a, a random action there
+        >>> out["next", "terminated"].squeeze(-1).tolist(), out["next", "done"].squeeze(-1).tolist()
+        ([False, True, True, False, False], [False, True, True, False, True])
+        >>> bool(out["action"][2].abs() <= 1)
+        True
     """
 
     def __init__(
@@ -99,10 +118,14 @@ class AbsorbingStateTransform(Transform):
         observation_key: NestedKey = "observation",
         action_key: NestedKey = "action",
         reward_key: NestedKey = "reward",
+        bootstrap: bool = True,
+        action_spec: TensorSpec | None = None,
     ) -> None:
         super().__init__(in_keys=[observation_key], out_keys=[observation_key])
         self.action_key = action_key
         self.reward_key = reward_key
+        self.bootstrap = bootstrap
+        self.absorbing_action_spec = action_spec
 
     @property
     def observation_key(self) -> NestedKey:
@@ -166,14 +189,21 @@ class AbsorbingStateTransform(Transform):
 
         into = tensordict.clone()
         into.get(("next", self.observation_key))[ends] = absorbing
-        for flag in ("terminated", "done", "truncated"):
-            into.get(("next", flag))[ends] = False
+        if self.bootstrap:  # only the absorbing row ends the trajectory, and it bootstraps
+            for flag in ("terminated", "done", "truncated"):
+                into.get(("next", flag))[ends] = False
         loop = into[ends].clone()
         loop.set(self.observation_key, absorbing.expand_as(loop.get(self.observation_key)).clone())
         loop.set(("next", self.observation_key), absorbing.expand_as(loop.get(self.observation_key)).clone())
-        loop.set(self.action_key, torch.zeros_like(loop.get(self.action_key)))
+        action = loop.get(self.action_key)
+        spec = self.absorbing_action_spec
+        loop.set(self.action_key, torch.zeros_like(action) if spec is None
+                 else spec.rand(action.shape[:-1]).to(device=action.device, dtype=action.dtype))
         loop.set(("next", self.reward_key), torch.zeros_like(loop.get(("next", self.reward_key))))
         loop.get(("next", "done")).fill_(True)
+        if not self.bootstrap:
+            loop.get(("next", "terminated")).fill_(True)
+            loop.get(("next", "truncated")).fill_(False)
 
         # Row i of the input moves down by the number of terminations before it; the
         # absorbing row of termination j goes right after j's new position.
@@ -188,4 +218,5 @@ class AbsorbingStateTransform(Transform):
         return observation_spec
 
     def __repr__(self) -> str:
-        return f"{type(self).__name__}(observation_key={self.observation_key!r})"
+        return (f"{type(self).__name__}(observation_key={self.observation_key!r}, bootstrap={self.bootstrap}, "
+                f"random_action={self.absorbing_action_spec is not None})")

@@ -22,6 +22,8 @@ Two call paths:
 
 from __future__ import annotations
 
+import math
+
 import torch
 import torch.nn.functional as F
 from tensordict import TensorDictBase
@@ -99,6 +101,10 @@ class DiscriminatorReward(Transform):
             positive, a survival bonus), or ``"airl"``: ``log D - log(1 - D) = ℓ`` (AIRL, and
             DAC's reward; positive where D says teacher, negative where it says agent).
             Defaults to ``"gail"``.
+        clip (tuple of float, optional): ``(low, high)``: ``D`` is clipped to ``[low, high]``
+            before the reward is taken, e.g. ``(0.01, 0.99)`` for the SAIL authors' DAC
+            reward ``-log(1 - clip(D, 0.01, 0.99))``. Computed exactly as a clamp of the logit
+            to ``[logit(low), logit(high)]``. Defaults to ``None`` (no clipping).
         coef (float, optional): the reward is multiplied by this. Defaults to ``1.0``.
         mode (str, optional): ``"replace"`` writes ``coef * r`` to ``out_key``; ``"add"``
             adds it to the value already there (e.g. ``r_env + coef * r_D`` as POfD
@@ -141,6 +147,10 @@ class DiscriminatorReward(Transform):
         >>> logit = disc(data.clone())["d_logit"]
         >>> torch.allclose(shaping(data.clone())["next", "reward"], 1 + 0.1 * logit)
         True
+        >>> clipped = DiscriminatorReward(disc, clip=(0.01, 0.99))  # the SAIL authors' DAC reward
+        >>> d = torch.sigmoid(logit).clamp(0.01, 0.99)
+        >>> torch.allclose(clipped(data.clone())["next", "reward"], -torch.log(1 - d))
+        True
     """
 
     def __init__(
@@ -151,6 +161,7 @@ class DiscriminatorReward(Transform):
         keep_logit: bool = False,
         chunk_size: int = 1024,
         kind: str = "gail",
+        clip: tuple[float, float] | None = None,
         coef: float = 1.0,
         mode: str = "replace",
         row_id_key: NestedKey | None = None,
@@ -161,11 +172,16 @@ class DiscriminatorReward(Transform):
             raise ValueError(f"kind must be 'gail' (-log(1 - D)) or 'airl' (log D - log(1 - D)), got {kind!r}.")
         if mode not in ("replace", "add"):
             raise ValueError(f"mode must be 'replace' or 'add', got {mode!r}.")
+        if clip is not None and not (len(clip) == 2 and 0 < clip[0] < clip[1] < 1):
+            raise ValueError(f"clip must be (low, high) with 0 < low < high < 1, got {clip!r}.")
         super().__init__(in_keys=list(discriminator.in_keys), out_keys=[out_key])
         self.discriminator = discriminator
         self.keep_logit = keep_logit
         self.chunk_size = chunk_size
         self.kind = kind
+        self.clip = None if clip is None else (float(clip[0]), float(clip[1]))
+        # clip(sigmoid(l), low, high) == sigmoid(clamp(l, logit(low), logit(high))): sigmoid is monotone
+        self._logit_bounds = None if clip is None else tuple(math.log(p / (1 - p)) for p in self.clip)
         self.coef = coef
         self.mode = mode
         self.row_id_key = row_id_key
@@ -201,6 +217,8 @@ class DiscriminatorReward(Transform):
         return self._evaluate(obs, act).reshape(*lead, 1)
 
     def _reward(self, logit: torch.Tensor, current: TensorDictBase, key: NestedKey) -> torch.Tensor:
+        if self._logit_bounds is not None:
+            logit = logit.clamp(*self._logit_bounds)
         reward = F.softplus(logit) if self.kind == "gail" else logit
         if self.coef != 1.0:
             reward = self.coef * reward

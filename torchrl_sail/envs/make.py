@@ -10,14 +10,16 @@ import difflib
 
 import gymnasium as gym
 import numpy as np
-from torchrl.envs import Compose, DoubleToFloat, GymEnv, InitTracker, StepCounter, TransformedEnv
+from tensordict.utils import NestedKey
+from torchrl.envs import (ClipTransform, Compose, DoubleToFloat, GymEnv, InitTracker, StepCounter,
+                          TransformedEnv, VecNormV2)
 from torchrl.record.recorder import PixelRenderTransform
 
 from torchrl_sail.envs.absorbing import AbsorbingStateTransform
 from torchrl_sail.envs.delayed_reward import DelayedRewardTransform
 from torchrl_sail.envs.time_feature import TimeFeature
 
-__all__ = ["make_sail_env"]
+__all__ = ["make_sail_env", "observation_normalizer"]
 
 
 def _check_env_name(name: str) -> None:
@@ -41,6 +43,7 @@ def make_sail_env(
     rounding: str = "floor",
     absorbing_state: bool = False,
     render_size: tuple[int, int] | None = None,
+    normalized_observation_key: NestedKey | None = None,
     device: str = "cpu",
 ) -> TransformedEnv:
     """Builds ``GymEnv(env_name)`` with the SAIL transforms.
@@ -72,22 +75,46 @@ def make_sail_env(
             offscreen into ``"pixels"`` (uint8 ``[H, W, 3]``) with TorchRL's
             ``PixelRenderTransform``, for videos. MuJoCo needs a GL backend (``MUJOCO_GL=egl``
             on machines without a display). Defaults to ``None`` (no rendering).
+        normalized_observation_key (NestedKey, optional): also write a normalised copy of the
+            observation under this key, for on-policy learners (PPO), as TorchRL's PPO MuJoCo
+            example normalises: TorchRL's ``VecNormV2`` running statistics (``decay=0.99999``,
+            ``eps=1e-2``, computed on the float64 gymnasium observation, first in the stack)
+            then ``ClipTransform`` to ``[-10, 10]``. The time feature is appended to it raw,
+            after the normalisation: it is already in ``[0, 1]``, and its running statistics
+            would follow the episode lengths, which grow by orders of magnitude as a policy
+            learns to survive (early short episodes give it a std near 0.01, so later long
+            episodes would be normalised far into the clip). ``"observation"`` stays raw: it is
+            what the demonstrations hold and what a discriminator compares them with. Find the
+            normaliser with :func:`observation_normalizer`. Defaults to ``None`` (none).
         device (str, optional): device of the env outputs. Defaults to ``"cpu"``.
 
     Raises:
         ValueError: for an unknown env name (with the closest registered names).
 
     Examples:
-        >>> from torchrl_sail.envs import make_sail_env
+        >>> from torchrl_sail.envs import make_sail_env, observation_normalizer
         >>> env = make_sail_env("Hopper-v4")
         >>> td = env.rollout(3)
         >>> td["observation"].shape, td["observation"][:, -1].tolist()
         (torch.Size([3, 12]), [1.0, 0.9990000128746033, 0.9980000257492065])
+        >>> env = make_sail_env("Hopper-v4", normalized_observation_key="observation_norm")
+        >>> td = env.rollout(3)
+        >>> td["observation_norm"].shape, td["observation_norm"][:, -1].tolist()  # the time feature, raw
+        (torch.Size([3, 12]), [1.0, 0.9990000128746033, 0.9980000257492065])
+        >>> observation_normalizer(env).frozen  # updated by every reset and step
+        False
     """
     _check_env_name(env_name)
     transforms = [DoubleToFloat(), StepCounter(max_steps=max_episode_steps), InitTracker()]
+    observation_keys = ["observation"]
+    if normalized_observation_key is not None:
+        observation_keys.append(normalized_observation_key)
+        transforms[:0] = [
+            VecNormV2(in_keys=["observation"], out_keys=[normalized_observation_key], decay=0.99999, eps=1e-2),
+            ClipTransform(in_keys=[normalized_observation_key], low=-10.0, high=10.0),
+        ]
     if time_feature:
-        transforms.append(TimeFeature(max_steps=max_episode_steps))
+        transforms.append(TimeFeature(max_steps=max_episode_steps, in_keys=observation_keys))
     if delayed_reward:
         transforms.append(DelayedRewardTransform(reward_scale, rounding=rounding))
     if absorbing_state:
@@ -99,3 +126,38 @@ def make_sail_env(
     transforms.append(PixelRenderTransform(out_keys=["pixels"], preproc=np.ascontiguousarray))
     return TransformedEnv(GymEnv(env_name, device=device, render_mode="rgb_array", width=width, height=height),
                           Compose(*transforms))
+
+
+def observation_normalizer(env: TransformedEnv) -> VecNormV2 | None:
+    """The ``VecNormV2`` of an env made with ``make_sail_env(normalized_observation_key=...)``.
+
+    Its statistics are what a policy trained on the normalised observations needs at
+    evaluation: save them with the policy (``state_dict()``), load them into the evaluation
+    env's normaliser and ``freeze()`` it there. Load a copy: ``VecNormV2.load_state_dict``
+    keeps the given tensors, which the training env goes on updating in place.
+
+    Args:
+        env (TransformedEnv): an env made by :func:`make_sail_env`.
+
+    Returns:
+        the normaliser, or ``None`` when the env has none.
+
+    Examples:
+        >>> import copy
+        >>> from torchrl_sail import make_sail_env, observation_normalizer
+        >>> train = make_sail_env("Hopper-v4", normalized_observation_key="observation_norm")
+        >>> _ = train.rollout(5)
+        >>> evaluation = make_sail_env("Hopper-v4", normalized_observation_key="observation_norm")
+        >>> statistics = copy.deepcopy(observation_normalizer(train).state_dict())
+        >>> observation_normalizer(evaluation).load_state_dict(statistics)
+        <All keys matched successfully>
+        >>> frozen = observation_normalizer(evaluation).freeze()
+        >>> before = frozen.loc["observation"].clone()
+        >>> _ = evaluation.rollout(5)
+        >>> bool((frozen.loc["observation"] == before).all())
+        True
+        >>> observation_normalizer(make_sail_env("Hopper-v4")) is None
+        True
+    """
+    found = [t for t in env.transform if isinstance(t, VecNormV2)] if isinstance(env.transform, Compose) else []
+    return found[0] if found else None

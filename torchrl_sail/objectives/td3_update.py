@@ -9,21 +9,26 @@ critics as one batched matrix product over their stacked parameters, the actor o
 on the first critic only (the only one it reads), one ``_foreach_lerp_`` for the targets.
 The reference implementation (``implementation="loss"``) calls the loss's
 ``value_loss``/``actor_loss``, the optimizers and the target updater, as TorchRL's TD3
-script does; both give the same losses, gradients and parameters (tested).
+script does; both give the same losses, gradients and parameters (tested), also for n-step
+transitions (``steps_to_next_obs``) and DDPGfD's two-loss critic step (``nstep_key``).
 """
 from __future__ import annotations
 
+import math
 from typing import Literal
 
 import torch
 import torch.nn.functional as F
-from tensordict import TensorDictBase
+from tensordict import TensorDictBase, unravel_key
 from tensordict.nn import TensorDictModule, TensorDictSequential
+from tensordict.utils import NestedKey
 from torch import nn
 from torchrl.modules import TanhModule
 from torchrl.objectives import SoftUpdate, TD3Loss
 from torchrl.objectives.utils import distance_loss
 from torchrl.objectives.value import TD0Estimator
+
+from torchrl_sail.envs.nstep import nstep_view
 
 __all__ = ["TD3Update"]
 
@@ -121,6 +126,17 @@ class TD3Update:
     The policy-smoothing noise is drawn at the same point of both implementations, so a
     seeded step gives the same result with either (to float rounding).
 
+    **n-step targets.** Both implementations compute the loss's TD(0) estimator target
+    ``r + gamma ** k * (1 - terminated) * min_i Q'_i(s', a')`` with ``k`` the batch's
+    ``steps_to_next_obs`` entry where the estimator reads it
+    (``loss.value_estimator.tensor_keys.steps_to_next_obs``, at the root; ``k = 1`` when
+    absent), e.g. transitions from TorchRL's
+    :class:`~torchrl.envs.transforms.MultiStepTransform`. With ``nstep_key`` (DDPGfD), the
+    critic loss is ``L_1 + nstep_weight * L_n`` on the same rows: ``L_1`` the TD loss of the
+    1-step transition, ``L_n`` that of the n-step one an
+    :class:`~torchrl_sail.NStepTransform` stored under ``nstep_key`` (read through
+    :func:`~torchrl_sail.nstep_view`); the actor step is unchanged.
+
     Args:
         loss (TD3Loss): the loss whose parameters are trained (a
             :class:`~torchrl_sail.SAILLoss` or any ``TD3Loss``), with its value estimator
@@ -137,6 +153,14 @@ class TD3Update:
             evaluations to bfloat16: AMX on recent Xeons, tensor cores on CUDA; the
             parameters, optimizer states, loss reductions and the actor's tanh stay
             float32). ``"bf16"`` needs ``implementation="fused"``. Defaults to ``"fp32"``.
+        nstep_key (NestedKey, optional): where each row's n-step transition is (an
+            :class:`~torchrl_sail.NStepTransform`'s ``out_key``, e.g. ``"next_n"``): adds
+            DDPGfD's n-step TD loss to the critic loss. Defaults to ``None`` (1-step only).
+        nstep_weight (float, optional): DDPGfD's ``lambda_1``, the weight of the n-step
+            loss (``> 0``). Defaults to ``1.0``.
+        actor_max_grad_norm (float, optional): clip the actor's gradients to this global
+            norm before its step (``torch.nn.utils.clip_grad_norm_``, no host sync), as
+            Kostrikov et al.'s DAC does at 40. Defaults to ``None`` (no clipping).
 
     Examples:
         >>> import torch
@@ -167,6 +191,17 @@ class TD3Update:
         >>> metrics = update(batch, update_actor=True)
         >>> sorted(metrics)
         ['loss_actor', 'loss_qvalue', 'q_mean']
+
+        DDPGfD's critic loss, 1-step + lambda_1 * n-step (here a 3-step view with a made-up
+        window: in a run an :class:`~torchrl_sail.NStepTransform` writes it):
+
+        >>> nstep = TD3Update(
+        ...     loss, critic_optimizer=update.critic_optimizer, actor_optimizer=update.actor_optimizer,
+        ...     target_updater=update.target_updater, nstep_key="next_n", nstep_weight=1.0)
+        >>> batch["next_n"] = batch["next"].clone()
+        >>> batch["next_n", "steps_to_next_obs"] = torch.full((8, 1), 3)
+        >>> sorted(nstep(batch, update_actor=False))
+        ['loss_qvalue', 'loss_qvalue_nstep', 'q_mean']
     """
 
     def __init__(
@@ -178,6 +213,9 @@ class TD3Update:
         target_updater: SoftUpdate,
         implementation: Literal["fused", "loss"] = "fused",
         precision: Literal["fp32", "bf16"] = "fp32",
+        nstep_key: NestedKey | None = None,
+        nstep_weight: float = 1.0,
+        actor_max_grad_norm: float | None = None,
     ) -> None:
         if implementation not in ("fused", "loss"):
             raise ValueError(f"implementation must be 'fused' or 'loss', got {implementation!r}.")
@@ -188,10 +226,20 @@ class TD3Update:
             raise ValueError(f"precision={precision!r} needs implementation='fused'.")
         if not isinstance(loss, TD3Loss):
             raise TypeError(f"TD3Update needs a TD3Loss (e.g. SAILLoss), got {type(loss).__name__}.")
+        if nstep_key is not None and nstep_key in ("next", ("next",)):
+            raise ValueError("nstep_key='next' is the 1-step transition: name where the n-step view is, e.g. 'next_n'.")
+        if not (isinstance(nstep_weight, (int, float)) and 0 < nstep_weight < math.inf):
+            raise ValueError(f"nstep_weight (DDPGfD's lambda_1) must be a finite number > 0, got {nstep_weight!r}.")
+        self.nstep_key = nstep_key
+        self.nstep_weight = float(nstep_weight)
         self.loss = loss
         self.critic_optimizer = critic_optimizer
         self.actor_optimizer = actor_optimizer
         self.target_updater = target_updater
+        if actor_max_grad_norm is not None and not actor_max_grad_norm > 0:
+            raise ValueError(f"actor_max_grad_norm must be > 0 or None, got {actor_max_grad_norm!r}.")
+        self.actor_max_grad_norm = actor_max_grad_norm
+        self._actor_params = [p for group in actor_optimizer.param_groups for p in group["params"]]
         self.implementation = implementation
         self.precision = precision
         self._device_type = loss.max_action.device.type
@@ -205,9 +253,20 @@ class TD3Update:
             raise ValueError("TD3Update(implementation='fused') needs target networks for the actor and the "
                              "critic (TD3Loss(delay_actor=True, delay_qvalue=True), the default).")
         estimator = loss.value_estimator
-        if type(estimator) is not TD0Estimator or estimator.average_rewards:
+        if type(estimator) is not TD0Estimator:
             raise ValueError(f"TD3Update(implementation='fused') implements the TD(0) target; the loss has "
                              f"{type(estimator).__name__}: use implementation='loss'.")
+        # What TD0Estimator.value_estimate does besides r + gamma^k (1 - terminated) Q': refused, not approximated.
+        if estimator.average_rewards:
+            raise ValueError("TD3Update(implementation='fused') does not standardise rewards: the loss's TD0Estimator "
+                             "has average_rewards=True; use implementation='loss'.")
+        if estimator.value_network is not None:
+            raise ValueError("TD3Update(implementation='fused') bootstraps from the loss's target critics; the loss's "
+                             "TD0Estimator has its own value_network: use implementation='loss'.")
+        if unravel_key(estimator.tensor_keys.value) != unravel_key(loss.tensor_keys.state_action_value):
+            raise ValueError(f"TD3Update(implementation='fused'): the TD0Estimator reads the next value from "
+                             f"{estimator.tensor_keys.value!r}, where TD3Loss.value_loss does not write it "
+                             f"({loss.tensor_keys.state_action_value!r}); use implementation='loss'.")
         if not isinstance(self.target_updater, SoftUpdate):
             raise TypeError(f"TD3Update(implementation='fused') implements SoftUpdate's Polyak step, got "
                             f"{type(self.target_updater).__name__}: use implementation='loss'.")
@@ -297,35 +356,83 @@ class TD3Update:
     def critic_step(self, batch: TensorDictBase) -> dict[str, torch.Tensor]:
         """``value_loss``, its backward and ``critic_optimizer.step()``.
 
+        With ``nstep_key``, the loss is ``value_loss(batch) + nstep_weight * value_loss(n-step
+        view)``, and the metrics hold ``"loss_qvalue_nstep"`` (the unweighted n-step term).
+
         Args:
             batch (TensorDictBase): a ``[B]`` batch of transitions with the loss's keys.
         """
         loss = self.loss
+        nstep = self.nstep_key is not None
         if self.implementation == "loss":
             with self._autocast():
                 loss_q, info = loss.value_loss(batch)
+                if nstep:
+                    loss_n, _ = loss.value_loss(self._nstep_view(batch))
+                    loss_q = loss_q + self.nstep_weight * loss_n
             q = info["pred_value"]
         else:
-            keys = loss.tensor_keys
-            action = batch[keys.action]
-            # drawn first, as TD3Loss.value_loss does ("for reprod")
-            noise = (torch.randn_like(action) * loss.policy_noise).clamp(-loss.noise_clip, loss.noise_clip)
+            action = batch[loss.tensor_keys.action]
+            # drawn first, as TD3Loss.value_loss does ("for reprod"); the n-step loss's second
+            # value_loss call draws the next one
+            noise = self._noise(action)
+            if nstep:
+                view, noise_n = self._nstep_view(batch), self._noise(action)
             with self._autocast():
                 with torch.no_grad():
-                    next_action = self._action(self._target_actor, self._actor_input(batch, ("next",)))
-                    next_action = (next_action + noise).clamp(loss.min_action, loss.max_action)
-                    next_q = _run(self._target_critic, self._critic_input(batch, next_action, ("next",))).min(0)[0]
-                    not_terminated = (~batch["next", keys.terminated]).int()
-                    target = batch["next", keys.reward] + loss.value_estimator.gamma * not_terminated * next_q.float()
-                    target = target.squeeze(-1)
+                    target = self._target(batch, noise)
+                    if nstep:
+                        target_n = self._target(view, noise_n)
+                # Q(s, a) of the sampled rows, shared by both TD losses
                 q = _run(self._critic, self._critic_input(batch, action)).squeeze(-1).float()  # [num_qvalue_nets, B]
-                loss_q = loss._reduce_loss(
-                    distance_loss(q, target.expand_as(q), loss_function=loss.loss_function).sum(0),
-                    tensordict=batch, weights=loss._maybe_get_priority_weight(batch))
+                loss_q = self._td_loss(q, target, batch)
+                if nstep:
+                    loss_n = self._td_loss(q, target_n, view)
+                    loss_q = loss_q + self.nstep_weight * loss_n
         loss_q.backward()
         self.critic_optimizer.step()
         self.critic_optimizer.zero_grad(set_to_none=True)
-        return {"loss_qvalue": loss_q.detach(), "q_mean": q.detach().mean()}
+        metrics = {"loss_qvalue": loss_q.detach(), "q_mean": q.detach().mean()}
+        if nstep:
+            metrics["loss_qvalue_nstep"] = loss_n.detach()
+        return metrics
+
+    def _nstep_view(self, batch: TensorDictBase) -> TensorDictBase:
+        # the step count goes where the loss's estimator reads it
+        return nstep_view(batch, self.nstep_key, steps_key=self.loss.value_estimator.tensor_keys.steps_to_next_obs)
+
+    def _noise(self, action: torch.Tensor) -> torch.Tensor:
+        loss = self.loss
+        return (torch.randn_like(action) * loss.policy_noise).clamp(-loss.noise_clip, loss.noise_clip)
+
+    def _target(self, batch: TensorDictBase, noise: torch.Tensor) -> torch.Tensor:
+        """``TD3Loss.value_loss``'s target: ``TD0Estimator.value_estimate`` on the smoothed clipped double-Q.
+
+        ``r + gamma^k (1 - terminated) min_i Q'_i(s', clamp(pi'(s') + noise))`` with the
+        estimator's keys, ``k`` its ``steps_to_next_obs`` entry (``gamma`` alone without it).
+        """
+        loss = self.loss
+        estimator = loss.value_estimator
+        keys = estimator.tensor_keys
+        next_action = self._action(self._target_actor, self._actor_input(batch, ("next",)))
+        next_action = (next_action + noise).clamp(loss.min_action, loss.max_action)
+        next_q = _run(self._target_critic, self._critic_input(batch, next_action, ("next",))).min(0)[0]
+        reward = batch["next", keys.reward]
+        gamma = estimator.gamma
+        steps = batch.get(keys.steps_to_next_obs, None)
+        if steps is not None:  # n-step transitions, as TD0Estimator.value_estimate discounts them
+            gamma = gamma ** steps.view_as(reward)
+        terminated = batch.get(("next", keys.terminated), None)
+        if terminated is None:  # the estimator's fallback
+            terminated = batch["next", keys.done]
+        not_terminated = (~terminated).int()
+        return (reward + gamma * not_terminated * next_q.float()).squeeze(-1)
+
+    def _td_loss(self, q: torch.Tensor, target: torch.Tensor, batch: TensorDictBase) -> torch.Tensor:
+        """``value_loss``'s reduction: the distance summed over the critics, then the loss's masks and weights."""
+        loss = self.loss
+        return loss._reduce_loss(distance_loss(q, target.expand_as(q), loss_function=loss.loss_function).sum(0),
+                                 tensordict=batch, weights=loss._maybe_get_priority_weight(batch))
 
     def actor_step(self, batch: TensorDictBase) -> dict[str, torch.Tensor]:
         """``actor_loss``, its backward and ``actor_optimizer.step()`` (targets not moved).
@@ -342,6 +449,8 @@ class TD3Update:
                 q_pi = _run(self._critic_first, self._critic_input(batch, pi)).squeeze(-1).float()
                 loss_a = loss._reduce_loss(-q_pi, tensordict=batch, weights=loss._maybe_get_priority_weight(batch))
         loss_a.backward()
+        if self.actor_max_grad_norm is not None:
+            torch.nn.utils.clip_grad_norm_(self._actor_params, self.actor_max_grad_norm, foreach=True)
         self.actor_optimizer.step()
         self.actor_optimizer.zero_grad(set_to_none=True)
         return {"loss_actor": loss_a.detach()}
@@ -355,6 +464,7 @@ class TD3Update:
                 torch._foreach_lerp_(self._polyak_targets, self._polyak_sources, self._tau)
 
     def __repr__(self) -> str:
+        nstep = "" if self.nstep_key is None else f", nstep_key={self.nstep_key!r}, nstep_weight={self.nstep_weight}"
         return (f"{type(self).__name__}(loss={type(self.loss).__name__}, implementation={self.implementation!r}, "
-                f"precision={self.precision!r})")
+                f"precision={self.precision!r}{nstep})")
 

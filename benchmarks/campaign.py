@@ -1,0 +1,192 @@
+"""The results campaign: SAIL and the baselines on the paper's four envs, cell by cell, two runs at a time.
+
+    python benchmarks/campaign.py --teachers-dir PATH/TO/teacher_dataset --out benchmarks/runs/campaign --jobs 2
+    python benchmarks/campaign.py ... --stages main --dry-run     # print the commands, run nothing
+    python benchmarks/campaign.py --out benchmarks/runs/campaign --collect benchmarks/results/campaign
+
+Every run is ``examples/sail_td3.py`` with one torch thread, ``resume=auto`` (a stopped run
+continues from its last checkpoint, a finished one is skipped), checkpoints every 25k frames
+and deterministic evaluations of 10 episodes every 10k frames, in
+``<out>/<stage>/<teacher>/<env>/<method>/seed<seed>`` (under each stage, the layout of
+``run_matrix.py``), so ``aggregate.py <out>`` reads it. The queue is ordered so that the results table fills cell by
+cell: seed 0 of every cell first, then the other seeds, then the 1M-frame runs, then the
+teacher-quality and teacher-rule sweeps. ``--jobs`` runs go at once; rerunning the same command
+after an interruption continues where it stopped. ``--teachers-dir`` holds the SAIL authors'
+teacher files (``expert_data_no_img_<Env>_scores_<score>_episodes_1.npz``).
+
+``--collect DEST`` copies what the report needs of every finished run under ``--out`` to the
+same place under ``DEST`` (``aggregate.py DEST`` reads it): ``config.yaml``, ``summary.json``,
+the stage's ``matrix.json``, and one ``scalars.csv`` (``tag,frames,value``) with the evaluation
+curve and the diagnostics of :data:`DIAGNOSTICS`, not the per-scalar log folders.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import shutil
+import shlex
+import subprocess
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from run_matrix import record_matrix, REPO, SCRIPT, Teacher  # noqa: E402
+
+# The authors' one-trajectory teachers (their settings.py optimal_score names the file).
+PAPER_TEACHERS = {
+    "Hopper-v4": "expert_data_no_img_Hopper_scores_1500_episodes_1.npz",
+    "HalfCheetah-v4": "expert_data_no_img_HalfCheetah_scores_5600_episodes_1.npz",
+    "Walker2d-v4": "expert_data_no_img_Walker2d_scores_1500_episodes_1.npz",
+    "Swimmer-v4": "expert_data_no_img_Swimmer_scores_120_episodes_1.npz",
+}
+ENVS = list(PAPER_TEACHERS)
+# What a run's report needs from its logs: the evaluation curve, then the diagnostics that explain
+# it (D's accuracy and rewards on both sides, Q, the threshold C and promotions, alpha, speed).
+DIAGNOSTICS = ("eval/return", "train/dense_return", "teacher/threshold", "teacher/num_promoted", "alpha",
+               "d/accuracy_teacher", "d/accuracy_agent", "d/reward_teacher", "d/reward_agent", "d/grad_penalty",
+               "sail/q_mean", "sail/loss_qvalue", "sail/d_reward_mean", "sail/env_reward_mean", "time/fps")
+COMMON = ("threads=1", "resume=auto", "logger.backends=[csv]", "eval.episodes=10", "eval.every_frames=10000",
+          "checkpoint.every_frames=25000")
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One run: a method on an env with a teacher and a seed, for a budget."""
+
+    stage: str
+    env: str
+    method: str
+    seed: int
+    frames: int
+    teacher: str = "paper"  # the label: a folder under --out
+    overrides: tuple[str, ...] = ()
+
+
+def plan() -> list[Cell]:
+    """The campaign's runs in the order they go."""
+    cells = []
+    for env in ENVS:  # seed 0 of every cell of the main table first
+        cells += [Cell("main", env, method, 0, 300_000) for method in ("sail", "dac")]
+    for env in ENVS:
+        cells += [Cell("main", env, "bc", seed, 300_000) for seed in (0, 1, 2)]  # offline: seconds each
+        cells += [Cell("main", env, method, 0, 300_000) for method in ("td3_delayed", "dac_published")]
+    for seed in (1, 2):
+        for env in ENVS:
+            cells += [Cell("main", env, method, seed, 300_000) for method in ("sail", "dac")]
+    cells += [Cell("scale", env, "sail", 0, 1_000_000) for env in ("HalfCheetah-v4", "Hopper-v4")]
+    for seed in (0, 1):  # the teacher-quality sweep (the paper's Table 2) and the teacher-buffer rule
+        cells += [Cell("teachers", "Hopper-v4", "sail", seed, 300_000, teacher=label)
+                  for label in ("random", "shipped")]
+        cells += [Cell("buffer", "Hopper-v4", "sail", seed, 300_000, teacher=f"paper-{rule}",
+                       overrides=(f"teacher.eviction={rule}",)) for rule in ("fifo", "union")]
+    return cells
+
+
+def teacher_path(cell: Cell, teachers_dir: Path, random_teacher: Path | None) -> Path | None:
+    if cell.teacher.startswith("paper"):
+        return teachers_dir / PAPER_TEACHERS[cell.env]
+    if cell.teacher == "random":
+        return random_teacher
+    return None  # "shipped": the teacher shipped for the env (examples/teachers)
+
+
+def command(cell: Cell, out: Path, teacher: Path | None, python: str = sys.executable) -> list[str]:
+    run_dir = out / cell.stage / cell.teacher / cell.env / cell.method / f"seed{cell.seed}"
+    return [python, str(SCRIPT), f"algo={cell.method}", f"env={cell.env}", f"seed={cell.seed}",
+            f"collector.total_frames={cell.frames}", *COMMON,
+            *([f"teacher.path={teacher}"] if teacher is not None else []), *cell.overrides,
+            f"hydra.run.dir={run_dir}"]
+
+
+def finished(run_dir: Path) -> bool:
+    """A run whose ``summary.json`` reports its whole budget done."""
+    summary = run_dir / "summary.json"
+    if not summary.exists():
+        return False
+    done = json.loads(summary.read_text())
+    return done.get("offline", False) or done.get("frames", 0) >= done.get("total_frames", 1)
+
+
+def collect(out: Path, dest: Path) -> list[Path]:
+    """Copies the report's files of every finished run under ``out`` to ``dest``; returns the runs copied."""
+    copied = []
+    for summary in sorted(out.rglob("summary.json")):
+        run_dir = summary.parent
+        if not finished(run_dir):
+            continue
+        target = dest / run_dir.relative_to(out)
+        target.mkdir(parents=True, exist_ok=True)
+        for name in ("config.yaml", "summary.json"):
+            shutil.copy2(run_dir / name, target / name)
+        stage = run_dir.relative_to(out).parts[0]
+        if (out / stage / "matrix.json").exists():
+            shutil.copy2(out / stage / "matrix.json", dest / stage / "matrix.json")
+        with open(target / "scalars.csv", "w", newline="") as file:
+            writer = csv.writer(file)
+            writer.writerow(["tag", "frames", "value"])
+            for tag in DIAGNOSTICS:
+                path = run_dir / "logs" / "scalars" / f"{tag}.csv"
+                if path.exists():
+                    writer.writerows([tag, *line.split(",")] for line in path.read_text().split())
+        copied.append(target)
+    return copied
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--teachers-dir", type=Path, help="the authors' teacher_dataset folder")
+    parser.add_argument("--random-teacher", type=Path, help="a near-random Hopper-v4 teacher (make_teachers.py); "
+                                                            "without it the 'random' cells are skipped")
+    parser.add_argument("--out", type=Path, required=True)
+    parser.add_argument("--stages", nargs="+", default=["main", "scale", "teachers", "buffer"])
+    parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--dry-run", action="store_true")
+    parser.add_argument("--collect", type=Path, metavar="DEST", help="copy the finished runs' results, run nothing")
+    args = parser.parse_args(argv)
+    out = args.out.expanduser().resolve()
+    if args.collect:
+        for target in collect(out, args.collect):
+            print(target)
+        return 0
+    if args.teachers_dir is None:
+        parser.error("--teachers-dir is required to run the campaign")
+    missing = [name for name in PAPER_TEACHERS.values() if not (args.teachers_dir / name).exists()]
+    if missing:
+        parser.error(f"--teachers-dir {args.teachers_dir} lacks {', '.join(missing)}")
+    cells = [c for c in plan() if c.stage in args.stages and (c.teacher != "random" or args.random_teacher)]
+    commands = [(cell, command(cell, out, teacher_path(cell, args.teachers_dir.resolve(), args.random_teacher)))
+                for cell in cells]
+    if args.dry_run:
+        for _, cmd in commands:
+            print(shlex.join(cmd))
+        return 0
+    for cell in cells:  # aggregate.py labels runs from each stage folder's matrix.json
+        teacher = teacher_path(cell, args.teachers_dir.resolve(), args.random_teacher)
+        record_matrix(out / cell.stage, [Teacher(cell.teacher, teacher)], [cell.method], [cell.env], [cell.seed])
+
+    def launch(item) -> tuple[Cell, int]:
+        cell, cmd = item
+        run_dir = Path(cmd[-1].split("=", 1)[1])
+        run_dir.mkdir(parents=True, exist_ok=True)
+        start = time.time()
+        with open(run_dir / "campaign.log", "a") as log:
+            code = subprocess.run(cmd, cwd=REPO, stdout=log, stderr=subprocess.STDOUT,
+                                  env={**os.environ, "WANDB_SILENT": "true"}).returncode
+        print(f"[campaign] {cell.stage} {cell.teacher} {cell.env} {cell.method} seed{cell.seed}: "
+              f"exit {code} after {time.time() - start:.0f} s", flush=True)
+        return cell, code
+
+    with ThreadPoolExecutor(args.jobs) as pool:
+        failed = [cell for cell, code in pool.map(launch, commands) if code]
+    for cell in failed:
+        print(f"[campaign] failed: {cell}", file=sys.stderr)
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,106 @@
+"""``benchmarks/campaign.py``: the order of the campaign's runs and the commands it builds (no training)."""
+from __future__ import annotations
+
+import importlib.util
+import json
+import sys
+from collections import Counter
+from pathlib import Path
+
+import pytest
+import yaml
+
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+
+
+def load_script(name: str):
+    spec = importlib.util.spec_from_file_location(f"benchmarks_{name}", BENCHMARKS / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up there
+    spec.loader.exec_module(module)
+    return module
+
+
+campaign = load_script("campaign")
+
+ENVS = ["Hopper-v4", "HalfCheetah-v4", "Walker2d-v4", "Swimmer-v4"]
+
+
+def test_plan_fills_the_table_seed_0_first():
+    cells = campaign.plan()
+    # seed 0 of SAIL and DAC on every env comes first
+    assert [(c.env, c.method, c.seed) for c in cells[:8]] == [
+        (env, method, 0) for env in ENVS for method in ("sail", "dac")]
+    main = [c for c in cells if c.stage == "main"]
+    counts = Counter((c.method, c.seed) for c in main)
+    for method in ("sail", "dac", "bc"):  # 3 seeds on 4 envs
+        assert all(counts[method, seed] == 4 for seed in (0, 1, 2))
+    assert counts["td3_delayed", 0] == counts["dac_published", 0] == 4  # one seed per env
+    assert len(main) == 44 and {c.frames for c in main} == {300_000}
+    # the main table precedes the 1M-frame runs, which precede the two sweeps (seed 0 of both first)
+    order = {"main": 0, "scale": 1, "teachers": 2, "buffer": 2}
+    stages = [order[c.stage] for c in cells]
+    assert stages == sorted(stages)
+    sweeps = [c.seed for c in cells if order[c.stage] == 2]
+    assert sweeps == sorted(sweeps)
+    assert {(c.env, c.frames) for c in cells if c.stage == "scale"} == {("HalfCheetah-v4", 1_000_000),
+                                                                        ("Hopper-v4", 1_000_000)}
+    buffer = [c.overrides for c in cells if c.stage == "buffer"]
+    assert sorted(buffer) == sorted([("teacher.eviction=fifo",), ("teacher.eviction=union",)] * 2)
+    assert len(set(cells)) == len(cells)  # no run twice
+
+
+def test_command_is_resumable_single_threaded_and_in_its_own_folder(tmp_path):
+    cell = campaign.Cell("main", "Walker2d-v4", "dac", 2, 300_000)
+    teacher = tmp_path / campaign.PAPER_TEACHERS["Walker2d-v4"]
+    cmd = campaign.command(cell, tmp_path / "out", teacher, python="python")
+    assert cmd[:2] == ["python", str(campaign.SCRIPT)]
+    for arg in ("algo=dac", "env=Walker2d-v4", "seed=2", "collector.total_frames=300000", "threads=1",
+                "resume=auto", "eval.episodes=10", "checkpoint.every_frames=25000", f"teacher.path={teacher}"):
+        assert arg in cmd
+    assert cmd[-1] == f"hydra.run.dir={tmp_path / 'out' / 'main' / 'paper' / 'Walker2d-v4' / 'dac' / 'seed2'}"
+    shipped = campaign.Cell("teachers", "Hopper-v4", "sail", 0, 300_000, teacher="shipped")
+    assert not any(arg.startswith("teacher.path=") for arg in campaign.command(shipped, tmp_path, None))
+
+
+def test_dry_run_prints_the_queue_and_checks_the_teachers(tmp_path, capsys):
+    teachers = tmp_path / "teachers"
+    teachers.mkdir()
+    for name in campaign.PAPER_TEACHERS.values():
+        (teachers / name).touch()
+    assert campaign.main(["--teachers-dir", str(teachers), "--out", str(tmp_path / "out"),
+                          "--stages", "main", "--dry-run"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 44 and "algo=sail" in lines[0] and "env=Hopper-v4" in lines[0]
+    assert not (tmp_path / "out").exists()  # a dry run writes nothing
+    (teachers / campaign.PAPER_TEACHERS["Swimmer-v4"]).unlink()
+    with pytest.raises(SystemExit):
+        campaign.main(["--teachers-dir", str(teachers), "--out", str(tmp_path / "out"), "--dry-run"])
+    assert campaign.PAPER_TEACHERS["Swimmer-v4"] in capsys.readouterr().err
+
+
+def test_collect_copies_finished_runs_compactly_and_aggregate_reads_them(tmp_path):
+    out, dest = tmp_path / "runs", tmp_path / "results"
+    run_dir = out / "main" / "paper" / "Hopper-v4" / "sail" / "seed0"
+    (run_dir / "logs" / "scalars" / "d").mkdir(parents=True)
+    (run_dir / "logs" / "scalars" / "eval").mkdir()
+    (out / "main" / "matrix.json").write_text(json.dumps({"teachers": {"paper": "/t.npz"}}))
+    (run_dir / "config.yaml").write_text(yaml.safe_dump(
+        {"env": {"name": "Hopper-v4"}, "algo": {"name": "sail"}, "seed": 0, "collector": {"total_frames": 2000}}))
+    (run_dir / "summary.json").write_text(json.dumps({"frames": 2000, "total_frames": 2000}))
+    (run_dir / "logs" / "scalars" / "eval" / "return.csv").write_text("1000,12.5\n2000,30.0\n")
+    (run_dir / "logs" / "scalars" / "d" / "accuracy_agent.csv").write_text("1000,0.75\n")
+    (run_dir / "logs" / "scalars" / "d" / "loss_discriminator.csv").write_text("1000,0.5\n")  # not a diagnostic
+    unfinished = out / "main" / "paper" / "Hopper-v4" / "sail" / "seed1"
+    unfinished.mkdir()
+    (unfinished / "summary.json").write_text(json.dumps({"frames": 1000, "total_frames": 2000}))
+
+    assert campaign.collect(out, dest) == [dest / run_dir.relative_to(out)]
+    target = dest / "main" / "paper" / "Hopper-v4" / "sail" / "seed0"
+    assert sorted(p.name for p in target.iterdir()) == ["config.yaml", "scalars.csv", "summary.json"]
+    assert (dest / "main" / "matrix.json").exists() and not (dest / "main" / "paper" / "Hopper-v4" / "sail" / "seed1").exists()
+    assert (target / "scalars.csv").read_text().splitlines() == [
+        "tag,frames,value", "eval/return,1000,12.5", "eval/return,2000,30.0", "d/accuracy_agent,1000,0.75"]
+    aggregate = load_script("aggregate")
+    assert aggregate.read_scalar(target, "eval/return") == [(1000, 12.5), (2000, 30.0)]
+    assert aggregate.read_scalar(target, "d/accuracy_agent") == [(1000, 0.75)]
