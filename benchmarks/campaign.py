@@ -166,7 +166,9 @@ def main(argv: list[str] | None = None) -> int:
             print(shlex.join(cmd))
         return 0
     for cell in cells:  # aggregate.py labels runs from each stage folder's matrix.json
-        teacher = teacher_path(cell, args.teachers_dir.resolve(), args.random_teacher)
+        # one label per teacher folder: "paper" is the authors' folder, a file per env
+        teacher = (args.teachers_dir.resolve() if cell.teacher.startswith("paper")
+                   else teacher_path(cell, args.teachers_dir.resolve(), args.random_teacher))
         record_matrix(out / cell.stage, [Teacher(cell.teacher, teacher)], [cell.method], [cell.env], [cell.seed])
 
     def launch(item) -> tuple[Cell, int]:

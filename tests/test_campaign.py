@@ -1,6 +1,7 @@
 """``benchmarks/campaign.py``: the order of the campaign's runs and the commands it builds (no training)."""
 from __future__ import annotations
 
+import argparse
 import importlib.util
 import json
 import sys
@@ -104,3 +105,21 @@ def test_collect_copies_finished_runs_compactly_and_aggregate_reads_them(tmp_pat
     aggregate = load_script("aggregate")
     assert aggregate.read_scalar(target, "eval/return") == [(1000, 12.5), (2000, 30.0)]
     assert aggregate.read_scalar(target, "d/accuracy_agent") == [(1000, 0.75)]
+
+
+def test_matrix_records_every_stage_and_label(tmp_path, monkeypatch):
+    teachers = tmp_path / "teachers"
+    teachers.mkdir()
+    for name in campaign.PAPER_TEACHERS.values():
+        (teachers / name).touch()
+    launched = []
+    monkeypatch.setattr(campaign.subprocess, "run", lambda cmd, **kw: launched.append(cmd) or argparse.Namespace(returncode=0))
+    assert campaign.main(["--teachers-dir", str(teachers), "--out", str(tmp_path / "out"), "--jobs", "1"]) == 0
+    assert len(launched) == len([c for c in campaign.plan() if c.teacher != "random"])
+    main = json.loads((tmp_path / "out" / "main" / "matrix.json").read_text())
+    assert main["teachers"] == {"paper": str(teachers)}  # the authors' folder: one file per env
+    assert {(s["envs"][0], s["methods"][0], s["seeds"][0]) for s in main["sweeps"]} == {
+        (c.env, c.method, c.seed) for c in campaign.plan() if c.stage == "main"}
+    buffer = json.loads((tmp_path / "out" / "buffer" / "matrix.json").read_text())
+    assert set(buffer["teachers"]) == {"paper-fifo", "paper-union"}
+    assert json.loads((tmp_path / "out" / "teachers" / "matrix.json").read_text())["teachers"] == {"shipped": None}
