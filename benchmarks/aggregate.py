@@ -1,7 +1,7 @@
-"""Aggregates ``sail_td3.py`` run folders into the paper's results table and learning curves.
+"""Aggregates the training scripts' run folders into the paper's results table and learning curves.
 
     python benchmarks/aggregate.py benchmarks/runs/hopper50k --out benchmarks/runs/hopper50k/report \
-        [--expect-methods sail td3_delayed] [--expect-seeds 0 1 2]
+        [--expect-methods sail td3_delayed] [--expect-seeds 0 1 2] [--per-run]
 
 A run folder is any folder holding ``config.yaml`` (hidden folders such as Hydra's ``.hydra/``
 are skipped). Runs are grouped by (env, teacher, method): the teacher is the folder name under a
@@ -29,10 +29,17 @@ name (``shipped`` for the env's default teacher). Writes to ``--out``:
   seeds, min-max band), the teacher's return dashed, offline methods (one evaluation each, at
   their headline mean) as dotted lines.
 
+``--per-run`` adds a "Runs" section to ``results.md``: per finished run, its eval curve, when it
+first passed the teacher, its best and final evaluation, its best logged training return, when
+alpha switched (first promotion), promotions and the final threshold C, frames/s and peak memory
+(from ``summary.json`` and the logs; ``read_scalar`` reads a live run's ``logs/scalars/`` and a
+results copy's ``scalars.csv``).
+
 Only finished runs count. Missing runs (expected by ``--expect-*`` or ``matrix.json`` and
 absent), unfinished ones (no ``summary.json``, or fewer frames than ``collector.total_frames``)
 and duplicates are listed in a "Missing or unfinished runs" section, never averaged in.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -49,9 +56,24 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from torchrl_sail.runs import read_scalar  # a run's logs/scalars/<tag>.csv, or a results copy's scalars.csv
+
 # Display order; methods not listed here come after, alphabetically.
-METHOD_ORDER = ("sail", "sail_no_lfd", "sail_no_adapt", "sail_onpolicy", "sail_sac", "sail_rnd",
-                "td3_delayed", "dac", "ddpgfd", "pofd", "pofd_td3", "gail", "bc")
+METHOD_ORDER = (
+    "sail",
+    "sail_no_lfd",
+    "sail_no_adapt",
+    "sail_onpolicy",
+    "sail_sac",
+    "sail_rnd",
+    "td3_delayed",
+    "dac",
+    "ddpgfd",
+    "pofd",
+    "pofd_td3",
+    "gail",
+    "bc",
+)
 HEADLINE_EVALS = 5  # the headline figure of a run: the mean of its last 5 evaluations
 HEADLINE = f"last{HEADLINE_EVALS}"  # its CSV column prefix
 SPEC_EVAL_EPISODES = 10  # episodes per evaluation the reporting spec asks for
@@ -167,8 +189,12 @@ class Group:
         passed = [frames for frames in passed if frames is not None]
         teacher = self.teacher_return
         return {
-            "n_seeds": len(values), "seeds": sorted(run.seed for run in self.runs),
-            "headline_mean": mean, "headline_std": std, "ci95_low": low, "ci95_high": high,
+            "n_seeds": len(values),
+            "seeds": sorted(run.seed for run in self.runs),
+            "headline_mean": mean,
+            "headline_std": std,
+            "ci95_low": low,
+            "ci95_high": high,
             "headline_evals_min": min(run.headline_evals for run in self.runs),
             "final_mean": statistics.fmean(run.final_return for run in self.runs),
             "best_mean": statistics.fmean(run.best_return for run in self.runs),
@@ -190,8 +216,14 @@ def bootstrap_ci(values: list[float], confidence: float = 0.95) -> tuple[float |
     from scipy.stats import bootstrap  # imported here so that reading runs needs no scipy
 
     def interval(method: str) -> tuple[float, float]:
-        result = bootstrap((np.asarray(values, dtype=float),), np.mean, confidence_level=confidence,
-                           n_resamples=CI_RESAMPLES, method=method, rng=np.random.default_rng(CI_SEED))
+        result = bootstrap(
+            (np.asarray(values, dtype=float),),
+            np.mean,
+            confidence_level=confidence,
+            n_resamples=CI_RESAMPLES,
+            method=method,
+            rng=np.random.default_rng(CI_SEED),
+        )
         return float(result.confidence_interval.low), float(result.confidence_interval.high)
 
     low, high = interval("BCa")
@@ -242,32 +274,6 @@ def teacher_label(folder: Path, config: dict) -> str:
     return "shipped" if not path else Path(path).name.removesuffix(".npz").removesuffix(".pt")
 
 
-def read_scalar(run_dir: Path, tag: str) -> list[tuple[int, float]]:
-    """(frames, value) rows of a TorchRL CSV scalar, sorted by frames, the last row of a frame kept.
-
-    Reads the run's ``logs/scalars/<tag>.csv``, or, in results copied by ``campaign.py --collect``,
-    the ``tag``'s rows of ``scalars.csv``.
-    """
-    collected = run_dir / "scalars.csv"
-    if collected.exists():
-        with open(collected, newline="") as file:
-            rows = {int(float(row["frames"])): float(row["value"]) for row in csv.DictReader(file) if row["tag"] == tag}
-        return sorted(rows.items())
-    path = run_dir / "logs" / "scalars" / f"{tag}.csv"
-    if not path.exists():
-        return []
-    rows = {}
-    for number, line in enumerate(path.read_text().splitlines(), 1):
-        if not line.strip():
-            continue
-        try:
-            frames, value = line.split(",")
-            rows[int(float(frames))] = float(value)
-        except ValueError as err:
-            raise ValueError(f"{path}, line {number}: expected 'frames,value', got {line!r}") from err
-    return sorted(rows.items())
-
-
 def load_run(folder: Path) -> Run:
     """Reads a run folder; ``problem`` says why it does not count, if it does not.
 
@@ -278,16 +284,18 @@ def load_run(folder: Path) -> Run:
         config = yaml.safe_load((folder / "config.yaml").read_text())
         env, method, seed = config["env"]["name"], config["algo"]["name"], int(config["seed"])
     except (yaml.YAMLError, KeyError, TypeError, ValueError) as err:
-        raise ValueError(f"{folder / 'config.yaml'} is not a sail_td3.py run config "
-                         f"(env.name, algo.name, seed): {err}") from err
+        raise ValueError(
+            f"{folder / 'config.yaml'} is not a sail_td3.py run config (env.name, algo.name, seed): {err}"
+        ) from err
     summary, problem = None, None
     if (folder / "summary.json").exists():
         try:
             summary = json.loads((folder / "summary.json").read_text())
         except json.JSONDecodeError as err:
             problem = f"unreadable summary.json ({err})"
-    run = Run(folder, env, method, seed, teacher_label(folder, config), config, summary,
-              read_scalar(folder, "eval/return"))
+    # the eval curve by frames, the last row of a frame kept (a frame logged twice counts once)
+    curve = sorted(dict(read_scalar(folder, "eval/return")).items())
+    run = Run(folder, env, method, seed, teacher_label(folder, config), config, summary, curve)
     run.problem = problem or unfinished_reason(run)
     if run.problem is None and run.final_return is None:
         run.problem = "finished, but with no eval return (eval.every_frames > total frames?)"
@@ -321,8 +329,12 @@ def group_runs(runs: list[Run]) -> tuple[dict[tuple[str, str, str], Group], list
             continue
         key = (run.env, run.teacher, run.method)
         if (key, run.seed) in seen:  # e.g. the same run copied twice: counting both would weigh it double
-            left_out.append((str(run.folder), f"duplicate of {seen[key, run.seed]} (same env, teacher, method, "
-                                              f"seed {run.seed}), not counted"))
+            left_out.append(
+                (
+                    str(run.folder),
+                    f"duplicate of {seen[key, run.seed]} (same env, teacher, method, seed {run.seed}), not counted",
+                )
+            )
             continue
         seen[key, run.seed] = run.folder
         groups.setdefault(key, Group(*key)).runs.append(run)
@@ -344,8 +356,9 @@ def within(a: Path, b: Path) -> bool:
     return a == b or a in b.parents or b in a.parents
 
 
-def missing_runs(runs: list[Run], roots: list[Path], expect_methods: list[str] = (),
-                 expect_seeds: list[int] = ()) -> list[tuple[str, str]]:
+def missing_runs(
+    runs: list[Run], roots: list[Path], expect_methods: list[str] = (), expect_seeds: list[int] = ()
+) -> list[tuple[str, str]]:
     """(where, why) of each expected run without a run folder.
 
     Under a ``run_matrix.py`` folder, every teacher x env x method x seed of the sweeps in its
@@ -368,13 +381,19 @@ def missing_runs(runs: list[Run], roots: list[Path], expect_methods: list[str] =
         else:
             for sweep in read_matrix(root).get("sweeps", []):
                 if any(within(root / sweep["teacher"], given) for given in roots):
-                    expected |= {(env, sweep["teacher"], method, seed) for env in sweep["envs"]
-                                 for method in expect_methods or sweep["methods"]
-                                 for seed in expect_seeds or sweep["seeds"]}
+                    expected |= {
+                        (env, sweep["teacher"], method, seed)
+                        for env in sweep["envs"]
+                        for method in expect_methods or sweep["methods"]
+                        for seed in expect_seeds or sweep["seeds"]
+                    }
         rank = {method: index for index, method in enumerate(sort_methods(method for _, _, method, _ in expected))}
         for env, teacher, method, seed in sorted(expected - cells, key=lambda c: (c[0], c[1], rank[c[2]], c[3])):
-            where = (str(root / teacher / env / method / f"seed{seed}") if root
-                     else f"env {env}, teacher {teacher}, method {method}, seed {seed}")
+            where = (
+                str(root / teacher / env / method / f"seed{seed}")
+                if root
+                else f"env {env}, teacher {teacher}, method {method}, seed {seed}"
+            )
             missing.append((where, "missing: no run folder"))
     return missing
 
@@ -420,8 +439,10 @@ def ordered_pairs(groups: dict) -> list[tuple[str, str]]:
 
 def pair_groups(groups: dict, env: str, teacher: str) -> list[Group]:
     """The groups of one (env, teacher), methods in display order."""
-    return [groups[env, teacher, method]
-            for method in sort_methods(method for (e, t, method) in groups if (e, t) == (env, teacher))]
+    return [
+        groups[env, teacher, method]
+        for method in sort_methods(method for (e, t, method) in groups if (e, t) == (env, teacher))
+    ]
 
 
 def rows(groups: dict) -> list[dict]:
@@ -429,15 +450,39 @@ def rows(groups: dict) -> list[dict]:
     out = []
     for env, teacher in ordered_pairs(groups):
         for group in pair_groups(groups, env, teacher):
-            out.append({"env": env, "teacher": teacher, "teacher_return": group.teacher_return,
-                        "method": group.method, "offline": group.offline, **group.stats()})
+            out.append(
+                {
+                    "env": env,
+                    "teacher": teacher,
+                    "teacher_return": group.teacher_return,
+                    "method": group.method,
+                    "offline": group.offline,
+                    **group.stats(),
+                }
+            )
     return out
 
 
 # The headline (mean of each run's last 5 evals, over seeds) first after the group's key.
-CSV_COLUMNS = ("env", "teacher", "method", f"{HEADLINE}_mean", f"{HEADLINE}_std", "ci95_low", "ci95_high",
-               "n_seeds", "seeds", "final_mean", "best_mean", "teacher_return", "vs_teacher",
-               "frames_to_teacher_median", "seeds_past_teacher", "headline_evals_min", "offline")
+CSV_COLUMNS = (
+    "env",
+    "teacher",
+    "method",
+    f"{HEADLINE}_mean",
+    f"{HEADLINE}_std",
+    "ci95_low",
+    "ci95_high",
+    "n_seeds",
+    "seeds",
+    "final_mean",
+    "best_mean",
+    "teacher_return",
+    "vs_teacher",
+    "frames_to_teacher_median",
+    "seeds_past_teacher",
+    "headline_evals_min",
+    "offline",
+)
 
 
 def write_csv(path: Path, table: list[dict]) -> None:
@@ -446,8 +491,12 @@ def write_csv(path: Path, table: list[dict]) -> None:
         writer = csv.writer(file)
         writer.writerow(CSV_COLUMNS)
         for row in table:
-            values = {**row, f"{HEADLINE}_mean": row["headline_mean"], f"{HEADLINE}_std": row["headline_std"],
-                      "seeds": " ".join(map(str, row["seeds"]))}
+            values = {
+                **row,
+                f"{HEADLINE}_mean": row["headline_mean"],
+                f"{HEADLINE}_std": row["headline_std"],
+                "seeds": " ".join(map(str, row["seeds"])),
+            }
             writer.writerow([NA if values[column] is None else values[column] for column in CSV_COLUMNS])
 
 
@@ -455,8 +504,65 @@ def fmt(value: float | None, digits: int = 1) -> str:
     return NA if value is None else f"{value:.{digits}f}"
 
 
-def markdown(table: list[dict], left_out: list[tuple[str, str]], notes: list[str], curves: list[Path]) -> str:
-    """``results.md``: the table, the runs left out, notes on the groups, the curve files."""
+def run_details(run: Run) -> str:
+    """A finished run's own figures, in Markdown: its eval curve, when it first passed the teacher,
+    best and final evaluation, best logged training return, alpha switch, promotions and final
+    threshold C, frames/s and peak memory (what ``summary.json`` holds of them)."""
+    summary, evals = run.summary or {}, run.curve
+    train = read_scalar(run.folder, "train/dense_return")
+    frames = summary.get("frames", 0)
+    teacher = run.teacher_return
+    passed = run.passed_teacher_at()
+    lines = [
+        f"### `{run.folder}`: {run.env}, {run.method}, teacher {run.teacher}, seed {run.seed}, "
+        f"{frames // 1000}k frames",
+        "",
+    ]
+    if evals:
+        lines += [
+            "| frames | " + " | ".join(f"{frame // 1000}k" for frame, _ in evals) + " |",
+            "|---|" + "---|" * len(evals),
+            "| eval return | " + " | ".join(f"{value:.0f}" for _, value in evals) + " |",
+            "",
+        ]
+    if teacher is not None:
+        lines.append(
+            f"- teacher return {teacher:.1f}; "
+            + (
+                f"eval first above it at {passed // 1000}k frames"
+                if passed is not None
+                else f"no eval above it within {frames // 1000}k frames"
+            )
+        )
+    lines.append(
+        f"- best eval {fmt(run.best_return, 0)}, final eval {fmt(run.final_return, 0)}"
+        if run.final_return is not None
+        else "- no evals"
+    )
+    lines.append(
+        f"- best training-episode mean return logged {max(v for _, v in train):.0f}"
+        if train
+        else "- no training returns"
+    )
+    if "num_promoted" in summary:
+        threshold = summary.get("teacher_threshold")
+        lines.append(
+            f"- alpha switched (first promotion) at {summary.get('alpha_switched_at_frame')} frames; "
+            f"{summary['num_promoted']} promoted"
+            + ("" if threshold is None else f"; final threshold C = {threshold:.0f}")
+        )
+    speed = summary.get("frames_per_second")
+    memory = summary.get("peak_memory_mb")
+    if speed is not None or memory is not None:
+        lines.append(f"- {fmt(speed)} frames/s (since the last start), peak RSS {fmt(memory, 0)} MB")
+    return "\n".join(lines)
+
+
+def markdown(
+    table: list[dict], left_out: list[tuple[str, str]], notes: list[str], curves: list[Path], details: list[str] = ()
+) -> str:
+    """``results.md``: the table, the runs left out, notes on the groups, the curve files, and the
+    per-run ``details`` (:func:`run_details`) if any."""
     best, methods = {}, defaultdict(int)  # per (env, teacher): the best headline mean, the number of methods
     for row in table:
         key = (row["env"], row["teacher"])
@@ -481,17 +587,27 @@ def markdown(table: list[dict], left_out: list[tuple[str, str]], notes: list[str
         std = "" if row["headline_std"] is None else f" ± {fmt(row['headline_std'])}"
         short = " †" if row["headline_evals_min"] < HEADLINE_EVALS else ""
         ci = NA if row["ci95_low"] is None else f"[{fmt(row['ci95_low'])}, {fmt(row['ci95_high'])}]"
-        passed = ("offline" if row["offline"] else
-                  f"{fmt(row['frames_to_teacher_median'], 0)} ({row['seeds_past_teacher']} seeds passed)")
-        lines.append(f"| {row['env']} | {row['teacher']} ({fmt(row['teacher_return'])}) | {row['method']} | "
-                     f"{mean}{std}{short} | {ci} | {row['n_seeds']} | {fmt(row['final_mean'])} | "
-                     f"{fmt(row['best_mean'])} | {fmt(row['vs_teacher'], 2)} | {passed} |")
+        passed = (
+            "offline"
+            if row["offline"]
+            else f"{fmt(row['frames_to_teacher_median'], 0)} ({row['seeds_past_teacher']} seeds passed)"
+        )
+        lines.append(
+            f"| {row['env']} | {row['teacher']} ({fmt(row['teacher_return'])}) | {row['method']} | "
+            f"{mean}{std}{short} | {ci} | {row['n_seeds']} | {fmt(row['final_mean'])} | "
+            f"{fmt(row['best_mean'])} | {fmt(row['vs_teacher'], 2)} | {passed} |"
+        )
     lines += ["", "## Missing or unfinished runs", ""]
     lines += [f"- `{where}`: {why}" for where, why in left_out] or ["None."]
     if notes:
         lines += ["", "## Notes", "", *[f"- {note}" for note in notes]]
     if curves:
         lines += ["", "## Learning curves", "", *[f"- [{path.name}]({path.name})" for path in curves]]
+    if details:
+        lines += ["", "## Runs", ""]
+        for text in details:
+            lines += [text, ""]
+        lines.pop()
     return "\n".join(lines) + "\n"
 
 
@@ -543,16 +659,22 @@ def headline_notes(group: Group) -> list[str]:
     name, notes = f"{group.env} / {group.teacher} / {group.method}", []
     short = [run for run in group.runs if run.headline_evals < HEADLINE_EVALS]
     if short:
+
         def evals(run: Run) -> str:
             detail = " (offline)" if run.offline else "" if run.curve else " (no eval CSV: summary.json's final eval)"
             return f"seed {run.seed}: {run.headline_evals}{detail}"
+
         seeds = "; ".join(evals(run) for run in sorted(short, key=lambda r: r.seed))
-        notes.append(f"{name}: fewer than {HEADLINE_EVALS} evaluations, so the headline averages all of them "
-                     f"(evaluations per seed: {seeds})")
+        notes.append(
+            f"{name}: fewer than {HEADLINE_EVALS} evaluations, so the headline averages all of them "
+            f"(evaluations per seed: {seeds})"
+        )
     episodes = sorted({run.eval_episodes for run in group.runs if run.eval_episodes not in (None, SPEC_EVAL_EPISODES)})
     if episodes:
-        notes.append(f"{name}: evaluations of eval.episodes={', '.join(map(str, episodes))} episodes "
-                     f"(the reporting spec asks for {SPEC_EVAL_EPISODES})")
+        notes.append(
+            f"{name}: evaluations of eval.episodes={', '.join(map(str, episodes))} episodes "
+            f"(the reporting spec asks for {SPEC_EVAL_EPISODES})"
+        )
     return notes
 
 
@@ -560,8 +682,11 @@ def safe_name(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.+-]+", "_", text)
 
 
-def aggregate(roots: list[Path], out: Path, expect_methods: list[str] = (), expect_seeds: list[int] = ()) -> str:
-    """Reads the runs under ``roots``, writes the table, CSV and curves to ``out``; returns the Markdown."""
+def aggregate(
+    roots: list[Path], out: Path, expect_methods: list[str] = (), expect_seeds: list[int] = (), per_run: bool = False
+) -> str:
+    """Reads the runs under ``roots``, writes the table, CSV and curves to ``out``; returns the Markdown
+    (with ``per_run``, each finished run's :func:`run_details` after it)."""
     runs = [load_run(folder) for folder in find_run_folders(roots)]
     groups, left_out = group_runs(runs)
     left_out = missing_runs(runs, roots, list(expect_methods), list(expect_seeds)) + left_out
@@ -570,11 +695,15 @@ def aggregate(roots: list[Path], out: Path, expect_methods: list[str] = (), expe
         notes += headline_notes(group)
         returns = {run.teacher_return for run in group.runs}
         if len(returns) > 1:
-            notes.append(f"{group.env} / {group.teacher} / {group.method}: the seeds' teacher returns differ "
-                         f"({sorted(r for r in returns if r is not None)}); the table shows their median")
+            notes.append(
+                f"{group.env} / {group.teacher} / {group.method}: the seeds' teacher returns differ "
+                f"({sorted(r for r in returns if r is not None)}); the table shows their median"
+            )
         for key, values in config_differences(group).items():
-            notes.append(f"{group.env} / {group.teacher} / {group.method}: the seeds differ in {key} "
-                         f"({', '.join(values)}); they are averaged together")
+            notes.append(
+                f"{group.env} / {group.teacher} / {group.method}: the seeds differ in {key} "
+                f"({', '.join(values)}); they are averaged together"
+            )
     out.mkdir(parents=True, exist_ok=True)
     curves = []
     for env, teacher in ordered_pairs(groups):
@@ -582,7 +711,15 @@ def aggregate(roots: list[Path], out: Path, expect_methods: list[str] = (), expe
         plot_curves(curves[-1], env, teacher, pair_groups(groups, env, teacher))
     table = rows(groups)
     write_csv(out / "results.csv", table)
-    text = markdown(table, left_out, notes, curves)
+    details = (
+        [
+            run_details(run)
+            for run in sorted((run for group in groups.values() for run in group.runs), key=lambda run: str(run.folder))
+        ]
+        if per_run
+        else []
+    )
+    text = markdown(table, left_out, notes, curves, details)
     (out / "results.md").write_text(text)
     return text
 
@@ -592,14 +729,17 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("roots", nargs="+", type=Path, help="folders holding run folders (searched recursively)")
     parser.add_argument("--out", type=Path, required=True, help="where results.md, results.csv and the PNGs go")
     parser.add_argument("--expect-methods", nargs="+", default=[], help="list these methods as missing where absent")
-    parser.add_argument("--expect-seeds", nargs="+", type=int, default=[], help="list these seeds as missing where absent")
+    parser.add_argument(
+        "--expect-seeds", nargs="+", type=int, default=[], help="list these seeds as missing where absent"
+    )
+    parser.add_argument("--per-run", action="store_true", help="add each finished run's own figures (a Runs section)")
     return parser.parse_args(argv)
 
 
 def main(argv: list[str] | None = None) -> None:
     args = parse_args(argv)
     try:
-        print(aggregate(args.roots, args.out, args.expect_methods, args.expect_seeds), end="")
+        print(aggregate(args.roots, args.out, args.expect_methods, args.expect_seeds, args.per_run), end="")
     except (FileNotFoundError, ValueError) as err:
         raise SystemExit(f"aggregate.py: {err}") from err
 

@@ -19,6 +19,7 @@ ReLU nets, batch 256, Hopper dims 12/3), each timed alone (median ms per call):
 distinct row, + fused step) and the process's resident memory for replay sizes 1e4, 1e5 and
 1e6 (filled) and batch 256 and 1024.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -52,29 +53,48 @@ def transitions(n: int, episode_len: int = 500) -> TensorDict:
     done = torch.zeros(n, 1, dtype=torch.bool)
     done[episode_len - 1 :: episode_len] = True
     done[-1] = True
-    return TensorDict({
-        "observation": torch.randn(n, OBS), "action": torch.rand(n, ACT) * 2 - 1,
-        "next": {"observation": torch.randn(n, OBS), "reward": torch.zeros(n, 1), "done": done,
-                 "terminated": done.clone(), "truncated": torch.zeros(n, 1, dtype=torch.bool)},
-    }, batch_size=[n])
+    return TensorDict(
+        {
+            "observation": torch.randn(n, OBS),
+            "action": torch.rand(n, ACT) * 2 - 1,
+            "next": {
+                "observation": torch.randn(n, OBS),
+                "reward": torch.zeros(n, 1),
+                "done": done,
+                "terminated": done.clone(),
+                "truncated": torch.zeros(n, 1, dtype=torch.bool),
+            },
+        },
+        batch_size=[n],
+    )
 
 
 def make_update(implementation: str, precision: str) -> TD3Update:
     """The example's TD3 step: [400, 300] ReLU nets, fused Adam, tau 0.005."""
     torch.manual_seed(0)
     actor = TensorDictSequential(
-        TensorDictModule(MLP(in_features=OBS, out_features=ACT, num_cells=[400, 300], activation_class=nn.ReLU),
-                         ["observation"], ["param"]),
-        TanhModule(["param"], ["action"], spec=SPEC))
-    critic = ValueOperator(MLP(in_features=OBS + ACT, out_features=1, num_cells=[400, 300],
-                               activation_class=nn.ReLU), in_keys=["action", "observation"])
+        TensorDictModule(
+            MLP(in_features=OBS, out_features=ACT, num_cells=[400, 300], activation_class=nn.ReLU),
+            ["observation"],
+            ["param"],
+        ),
+        TanhModule(["param"], ["action"], spec=SPEC),
+    )
+    critic = ValueOperator(
+        MLP(in_features=OBS + ACT, out_features=1, num_cells=[400, 300], activation_class=nn.ReLU),
+        in_keys=["action", "observation"],
+    )
     loss = SAILLoss(actor, critic, action_spec=SPEC)
     loss.make_value_estimator(gamma=0.99)
     loss.set_keys(terminated="done")
     return TD3Update(
-        loss, target_updater=SoftUpdate(loss, tau=0.005), implementation=implementation, precision=precision,
+        loss,
+        target_updater=SoftUpdate(loss, tau=0.005),
+        implementation=implementation,
+        precision=precision,
         critic_optimizer=torch.optim.Adam(loss.qvalue_network_params.flatten_keys().values(), lr=1e-3, fused=True),
-        actor_optimizer=torch.optim.Adam(loss.actor_network_params.flatten_keys().values(), lr=1e-3, fused=True))
+        actor_optimizer=torch.optim.Adam(loss.actor_network_params.flatten_keys().values(), lr=1e-3, fused=True),
+    )
 
 
 def timed(fn, iters: int, warmup: int = 20) -> float:
@@ -101,8 +121,10 @@ def buffers(replay_size: int):
 def pieces(iters: int) -> dict:
     teacher, agent = buffers(100_000)
     disc = Discriminator(OBS, ACT)
-    plain, rewarded = MixedReplayBuffer(teacher, agent), MixedReplayBuffer(teacher, agent,
-                                                                           transform=DiscriminatorReward(disc))
+    plain, rewarded = (
+        MixedReplayBuffer(teacher, agent),
+        MixedReplayBuffer(teacher, agent, transform=DiscriminatorReward(disc)),
+    )
     batches = plain.sample(256, teacher_fraction=0.5, num_batches=64).unbind(0)
     rows = {
         "sample: TensorDictReplayBuffer.sample(256) [peer]": lambda i: agent.sample(256),
@@ -111,10 +133,12 @@ def pieces(iters: int) -> dict:
         "sample + D reward, one batch per call": lambda i: rewarded.sample(256, 0.5),
         "sample + D reward, per batch of a 1000-batch block": lambda i: rewarded.sample(256, 0.5, 1000),
     }
-    distinct = MixedReplayBuffer(teacher, agent, transform=DiscriminatorReward(disc, row_id_key="row_id"),
-                                 row_id_key="row_id")
-    rows["sample + D reward once per distinct row, per batch of a 1000-batch block (replay 1e5)"] = \
-        lambda i: distinct.sample(256, 0.5, 1000)
+    distinct = MixedReplayBuffer(
+        teacher, agent, transform=DiscriminatorReward(disc, row_id_key="row_id"), row_id_key="row_id"
+    )
+    rows["sample + D reward once per distinct row, per batch of a 1000-batch block (replay 1e5)"] = lambda i: (
+        distinct.sample(256, 0.5, 1000)
+    )
     results = {name: timed(fn, iters if "block" not in name else max(iters // 50, 5)) for name, fn in rows.items()}
     for name in list(results):
         if "block" in name:
@@ -160,11 +184,14 @@ def scale(iters: int) -> list[tuple]:
     for replay_size in (10_000, 100_000, 1_000_000):
         teacher, agent = buffers(replay_size)
         every_row = MixedReplayBuffer(teacher, agent, transform=DiscriminatorReward(disc))
-        distinct = MixedReplayBuffer(teacher, agent, transform=DiscriminatorReward(disc, row_id_key="row_id"),
-                                     row_id_key="row_id")
+        distinct = MixedReplayBuffer(
+            teacher, agent, transform=DiscriminatorReward(disc, row_id_key="row_id"), row_id_key="row_id"
+        )
         for batch_size in (256, 1024):
-            block_ms = [timed(lambda i: rb.sample(batch_size, alpha, 1000), 3, warmup=1) / 1000
-                        for rb, alpha in ((every_row, 0.5), (distinct, 0.5), (distinct, 0.0))]
+            block_ms = [
+                timed(lambda i: rb.sample(batch_size, alpha, 1000), 3, warmup=1) / 1000
+                for rb, alpha in ((every_row, 0.5), (distinct, 0.5), (distinct, 0.0))
+            ]
             block = every_row.sample(batch_size, 0.5, 100).unbind(0)
             step_ms = mean_ms(lambda i: update(block[i % 100], update_actor=i % 2 == 0), iters)
             rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
@@ -189,14 +216,20 @@ def main():
         fused = results[f"TD3 step [fused, {precision}] per frame (critic + (actor + targets) / 2)"]
         print(f"TD3 step per frame, reference fp32 / fused {precision}: {ref / fused:.2f}x")
     if args.scale:
-        print("block sample + D reward, ms per step: every row (alpha 0.5) | once per distinct row (alpha 0.5) "
-              "| once per distinct row (alpha 0, all rows from the replay)")
-        print("| replay (filled) | batch | every row | distinct, alpha 0.5 | distinct, alpha 0 "
-              "| fused step, ms (mean) | peak RSS MB |")
+        print(
+            "block sample + D reward, ms per step: every row (alpha 0.5) | once per distinct row (alpha 0.5) "
+            "| once per distinct row (alpha 0, all rows from the replay)"
+        )
+        print(
+            "| replay (filled) | batch | every row | distinct, alpha 0.5 | distinct, alpha 0 "
+            "| fused step, ms (mean) | peak RSS MB |"
+        )
         print("|---|---|---|---|---|---|---|")
         for replay_size, batch_size, every, half, zero, step_ms, rss in scale(args.iters):
-            print(f"| {replay_size:.0e} | {batch_size} | {every:.3f} | {half:.3f} | {zero:.3f} | {step_ms:.2f} "
-                  f"| {rss:.0f} |")
+            print(
+                f"| {replay_size:.0e} | {batch_size} | {every:.3f} | {half:.3f} | {zero:.3f} | {step_ms:.2f} "
+                f"| {rss:.0f} |"
+            )
 
 
 if __name__ == "__main__":

@@ -19,14 +19,15 @@ same place under ``DEST`` (``aggregate.py DEST`` reads it): ``config.yaml``, ``s
 the stage's ``matrix.json``, and one ``scalars.csv`` (``tag,frames,value``) with the evaluation
 curve and the diagnostics of :data:`DIAGNOSTICS`, not the per-scalar log folders.
 """
+
 from __future__ import annotations
 
 import argparse
 import csv
 import json
 import os
-import shutil
 import shlex
+import shutil
 import subprocess
 import sys
 import time
@@ -35,7 +36,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from run_matrix import record_matrix, REPO, SCRIPT, Teacher  # noqa: E402
+from run_matrix import REPO, Teacher, record_matrix, script_for  # noqa: E402
 
 # The authors' one-trajectory teachers (their settings.py optimal_score names the file).
 PAPER_TEACHERS = {
@@ -47,11 +48,31 @@ PAPER_TEACHERS = {
 ENVS = list(PAPER_TEACHERS)
 # What a run's report needs from its logs: the evaluation curve, then the diagnostics that explain
 # it (D's accuracy and rewards on both sides, Q, the threshold C and promotions, alpha, speed).
-DIAGNOSTICS = ("eval/return", "train/dense_return", "teacher/threshold", "teacher/num_promoted", "alpha",
-               "d/accuracy_teacher", "d/accuracy_agent", "d/reward_teacher", "d/reward_agent", "d/grad_penalty",
-               "sail/q_mean", "sail/loss_qvalue", "sail/d_reward_mean", "sail/env_reward_mean", "time/fps")
-COMMON = ("threads=1", "resume=auto", "logger.backends=[csv]", "eval.episodes=10", "eval.every_frames=10000",
-          "checkpoint.every_frames=25000")
+DIAGNOSTICS = (
+    "eval/return",
+    "train/dense_return",
+    "teacher/threshold",
+    "teacher/num_promoted",
+    "alpha",
+    "d/accuracy_teacher",
+    "d/accuracy_agent",
+    "d/reward_teacher",
+    "d/reward_agent",
+    "d/grad_penalty",
+    "sail/q_mean",
+    "sail/loss_qvalue",
+    "sail/d_reward_mean",
+    "sail/env_reward_mean",
+    "time/fps",
+)
+COMMON = (
+    "threads=1",
+    "resume=auto",
+    "logger.backends=[csv]",
+    "eval.episodes=10",
+    "eval.every_frames=10000",
+    "checkpoint.every_frames=25000",
+)
 
 
 @dataclass(frozen=True)
@@ -80,10 +101,21 @@ def plan() -> list[Cell]:
             cells += [Cell("main", env, method, seed, 300_000) for method in ("sail", "dac")]
     cells += [Cell("scale", env, "sail", 0, 1_000_000) for env in ("HalfCheetah-v4", "Hopper-v4")]
     for seed in (0, 1):  # the teacher-quality sweep (the paper's Table 2) and the teacher-buffer rule
-        cells += [Cell("teachers", "Hopper-v4", "sail", seed, 300_000, teacher=label)
-                  for label in ("random", "shipped")]
-        cells += [Cell("buffer", "Hopper-v4", "sail", seed, 300_000, teacher=f"paper-{rule}",
-                       overrides=(f"teacher.eviction={rule}",)) for rule in ("fifo", "union")]
+        cells += [
+            Cell("teachers", "Hopper-v4", "sail", seed, 300_000, teacher=label) for label in ("random", "shipped")
+        ]
+        cells += [
+            Cell(
+                "buffer",
+                "Hopper-v4",
+                "sail",
+                seed,
+                300_000,
+                teacher=f"paper-{rule}",
+                overrides=(f"teacher.eviction={rule}",),
+            )
+            for rule in ("fifo", "union")
+        ]
     return cells
 
 
@@ -96,11 +128,20 @@ def teacher_path(cell: Cell, teachers_dir: Path, random_teacher: Path | None) ->
 
 
 def command(cell: Cell, out: Path, teacher: Path | None, python: str = sys.executable) -> list[str]:
+    """The run's command: the training script of the method's family (``sail_td3.py``, ``gail.py``, ``bc.py``)."""
     run_dir = out / cell.stage / cell.teacher / cell.env / cell.method / f"seed{cell.seed}"
-    return [python, str(SCRIPT), f"algo={cell.method}", f"env={cell.env}", f"seed={cell.seed}",
-            f"collector.total_frames={cell.frames}", *COMMON,
-            *([f"teacher.path={teacher}"] if teacher is not None else []), *cell.overrides,
-            f"hydra.run.dir={run_dir}"]
+    return [
+        python,
+        str(script_for(cell.method)),
+        f"algo={cell.method}",
+        f"env={cell.env}",
+        f"seed={cell.seed}",
+        f"collector.total_frames={cell.frames}",
+        *COMMON,
+        *([f"teacher.path={teacher}"] if teacher is not None else []),
+        *cell.overrides,
+        f"hydra.run.dir={run_dir}",
+    ]
 
 
 def finished(run_dir: Path) -> bool:
@@ -140,8 +181,11 @@ def collect(out: Path, dest: Path) -> list[Path]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--teachers-dir", type=Path, help="the authors' teacher_dataset folder")
-    parser.add_argument("--random-teacher", type=Path, help="a near-random Hopper-v4 teacher (make_teachers.py); "
-                                                            "without it the 'random' cells are skipped")
+    parser.add_argument(
+        "--random-teacher",
+        type=Path,
+        help="a near-random Hopper-v4 teacher (make_teachers.py); without it the 'random' cells are skipped",
+    )
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--stages", nargs="+", default=["main", "scale", "teachers", "buffer"])
     parser.add_argument("--jobs", type=int, default=2)
@@ -159,16 +203,21 @@ def main(argv: list[str] | None = None) -> int:
     if missing:
         parser.error(f"--teachers-dir {args.teachers_dir} lacks {', '.join(missing)}")
     cells = [c for c in plan() if c.stage in args.stages and (c.teacher != "random" or args.random_teacher)]
-    commands = [(cell, command(cell, out, teacher_path(cell, args.teachers_dir.resolve(), args.random_teacher)))
-                for cell in cells]
+    commands = [
+        (cell, command(cell, out, teacher_path(cell, args.teachers_dir.resolve(), args.random_teacher)))
+        for cell in cells
+    ]
     if args.dry_run:
         for _, cmd in commands:
             print(shlex.join(cmd))
         return 0
     for cell in cells:  # aggregate.py labels runs from each stage folder's matrix.json
         # one label per teacher folder: "paper" is the authors' folder, a file per env
-        teacher = (args.teachers_dir.resolve() if cell.teacher.startswith("paper")
-                   else teacher_path(cell, args.teachers_dir.resolve(), args.random_teacher))
+        teacher = (
+            args.teachers_dir.resolve()
+            if cell.teacher.startswith("paper")
+            else teacher_path(cell, args.teachers_dir.resolve(), args.random_teacher)
+        )
         record_matrix(out / cell.stage, [Teacher(cell.teacher, teacher)], [cell.method], [cell.env], [cell.seed])
 
     def launch(item) -> tuple[Cell, int]:
@@ -177,10 +226,14 @@ def main(argv: list[str] | None = None) -> int:
         run_dir.mkdir(parents=True, exist_ok=True)
         start = time.time()
         with open(run_dir / "campaign.log", "a") as log:
-            code = subprocess.run(cmd, cwd=REPO, stdout=log, stderr=subprocess.STDOUT,
-                                  env={**os.environ, "WANDB_SILENT": "true"}).returncode
-        print(f"[campaign] {cell.stage} {cell.teacher} {cell.env} {cell.method} seed{cell.seed}: "
-              f"exit {code} after {time.time() - start:.0f} s", flush=True)
+            code = subprocess.run(
+                cmd, cwd=REPO, stdout=log, stderr=subprocess.STDOUT, env={**os.environ, "WANDB_SILENT": "true"}
+            ).returncode
+        print(
+            f"[campaign] {cell.stage} {cell.teacher} {cell.env} {cell.method} seed{cell.seed}: "
+            f"exit {code} after {time.time() - start:.0f} s",
+            flush=True,
+        )
         return cell, code
 
     with ThreadPoolExecutor(args.jobs) as pool:

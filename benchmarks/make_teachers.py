@@ -9,6 +9,7 @@ then prints the ``--teacher td3_<budget>=<path>`` arguments for ``benchmarks/run
 Add other teachers (the paper's ``.npz``, a ``.pt`` file) as more ``--teacher LABEL=PATH``.
 Overrides after ``--`` go to every ``make_teacher.py`` run.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -18,8 +19,6 @@ import shlex
 import subprocess
 import sys
 from pathlib import Path
-
-import yaml
 
 REPO = Path(__file__).resolve().parents[1]
 SCRIPT = REPO / "examples" / "make_teacher.py"
@@ -31,11 +30,26 @@ def budget_label(budget: int) -> str:
     return f"td3_{budget // 1000}k" if budget % 1000 == 0 else f"td3_{budget}"
 
 
-def teacher_command(env: str, budget: int, out: Path, seed: int = 0, max_return: float | None = None,
-                    overrides: tuple[str, ...] = (), python: str = sys.executable) -> list[str]:
+def teacher_command(
+    env: str,
+    budget: int,
+    out: Path,
+    seed: int = 0,
+    max_return: float | None = None,
+    overrides: tuple[str, ...] = (),
+    python: str = sys.executable,
+) -> list[str]:
     """The ``make_teacher.py`` command of one budget; its Hydra logs go beside the teachers."""
-    command = [python, str(SCRIPT), f"env={env}", f"frames={budget}", f"seed={seed}", "threads=1",
-               f"out={out / f'{env}_{budget}'}", f"hydra.run.dir={out / 'logs' / f'{env}_{budget}'}"]
+    command = [
+        python,
+        str(SCRIPT),
+        f"env={env}",
+        f"frames={budget}",
+        f"seed={seed}",
+        "threads=1",
+        f"out={out / f'{env}_{budget}'}",
+        f"hydra.run.dir={out / 'logs' / f'{env}_{budget}'}",
+    ]
     if max_return is not None:
         command.append(f"max_return={max_return}")
     return command + list(overrides)
@@ -51,13 +65,16 @@ def eval_every_frames(overrides: tuple[str, ...]) -> int:
     for override in reversed(overrides):
         if override.startswith("eval_every_frames="):
             return int(override.partition("=")[2])
-    return int(yaml.safe_load((CONF / "make_teacher.yaml").read_text())["eval_every_frames"])
+    sys.path.insert(0, str(REPO / "examples"))
+    from config_schema import MakeTeacherConfig  # the source of make_teacher.py's defaults
+
+    return MakeTeacherConfig().eval_every_frames
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     argv = list(sys.argv[1:] if argv is None else argv)
-    overrides = argv[argv.index("--") + 1:] if "--" in argv else []
-    argv = argv[:argv.index("--")] if "--" in argv else argv
+    overrides = argv[argv.index("--") + 1 :] if "--" in argv else []
+    argv = argv[: argv.index("--")] if "--" in argv else argv
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--env", required=True, help="a conf/env name")
     parser.add_argument("--budgets", nargs="+", type=int, required=True, help="TD3 frames per teacher")
@@ -82,7 +99,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(REPO / "examples"), os.environ.get("PYTHONPATH")]))}
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join(filter(None, [str(REPO / "examples"), os.environ.get("PYTHONPATH")])),
+    }
     teachers = []
     for budget in sorted(args.budgets):
         path = args.out / f"{args.env}_{budget}"
@@ -100,7 +120,9 @@ def main(argv: list[str] | None = None) -> int:
     if not args.dry_run:
         for label, path in teachers:
             print(f"[make_teachers] {label}: return {teacher_return(path):.1f}, {path}")
-    print("run_matrix.py arguments:", " ".join(f"--teacher {label}={shlex.quote(str(path))}" for label, path in teachers))
+    print(
+        "run_matrix.py arguments:", " ".join(f"--teacher {label}={shlex.quote(str(path))}" for label, path in teachers)
+    )
     return 0
 
 

@@ -23,6 +23,7 @@ peak RSS, and frames/s ratios against SB3 of the same label; each record also ho
 ``phases_ms_per_frame`` (ms per timed frame of each timed phase); writes the raw records and
 the table to ``--out``.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -57,7 +58,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--sail-overrides", default="", help="extra Hydra overrides for sail and td3")
     parser.add_argument("--example-root", type=Path, default=REPO, help="checkout to run sail and td3 from")
     parser.add_argument("--label", default="", help="stored in every record, e.g. before | after")
-    parser.add_argument("--out", type=Path, default=REPO / "benchmarks" / "results" / "throughput.json")
+    parser.add_argument("--out", type=Path, default=REPO / "benchmarks" / "results" / "throughput" / "throughput.json")
     parser.add_argument("--worker", choices=["sb3"], help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.frames <= 0 or args.frames % 1000:
@@ -74,19 +75,41 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 # ----------------------------------------------------------------------------- commands
 def example_command(args, trainer: str, threads: int, run_dir: Path) -> list[str]:
-    cmd = [sys.executable, str(args.example_root / "examples" / "sail_td3.py"), f"env={args.env}",
-           f"seed={args.seed}", f"threads={threads}", f"collector.init_random_frames={args.warmup}",
-           f"collector.total_frames={args.warmup + args.frames}", "logger.backends=[csv]",
-           "checkpoint.every_frames=0", "eval.every_frames=0", f"hydra.run.dir={run_dir}"]
+    cmd = [
+        sys.executable,
+        str(args.example_root / "examples" / "sail_td3.py"),
+        f"env={args.env}",
+        f"seed={args.seed}",
+        f"threads={threads}",
+        f"collector.init_random_frames={args.warmup}",
+        f"collector.total_frames={args.warmup + args.frames}",
+        "logger.backends=[csv]",
+        "checkpoint.every_frames=0",
+        "eval.every_frames=0",
+        f"hydra.run.dir={run_dir}",
+    ]
     if trainer == "td3":
         cmd.append("algo=td3_delayed")
     return cmd + shlex.split(args.sail_overrides)
 
 
 def sb3_command(args, threads: int) -> list[str]:
-    return [sys.executable, "benchmarks/throughput.py", "--worker", "sb3", "--threads", str(threads),
-            "--env", args.env, "--warmup", str(args.warmup), "--frames", str(args.frames),
-            "--seed", str(args.seed)]
+    return [
+        sys.executable,
+        "benchmarks/throughput.py",
+        "--worker",
+        "sb3",
+        "--threads",
+        str(threads),
+        "--env",
+        args.env,
+        "--warmup",
+        str(args.warmup),
+        "--frames",
+        str(args.frames),
+        "--seed",
+        str(args.seed),
+    ]
 
 
 def per_unit_ms(seconds: dict, phase: str, count) -> float | None:
@@ -100,9 +123,13 @@ def record_from_summary(summary: dict) -> dict:
     if fps is None and summary.get("train_seconds"):
         fps = summary.get("train_frames", 0) / summary["train_seconds"]
     steps = counts.get("gradient_steps", counts.get("update"))  # or the timed phase's call count
-    return {"fps": fps, "ms_update": per_unit_ms(seconds, "update", steps),
-            "ms_frame": per_unit_ms(seconds, "collect", counts.get("frames")),
-            "peak_mb": summary.get("peak_memory_mb"), "gradient_steps": steps}
+    return {
+        "fps": fps,
+        "ms_update": per_unit_ms(seconds, "update", steps),
+        "ms_frame": per_unit_ms(seconds, "collect", counts.get("frames")),
+        "peak_mb": summary.get("peak_memory_mb"),
+        "gradient_steps": steps,
+    }
 
 
 def phases_ms_per_frame(summary: dict) -> dict:
@@ -120,10 +147,13 @@ def run_one(args, trainer: str, threads: int) -> dict:
         env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(args.example_root), os.environ.get("PYTHONPATH")]))
     try:
         if trainer == "td3" and not (args.example_root / "conf" / "algo" / "td3_delayed.yaml").is_file():
-            raise RuntimeError(f"{args.example_root} has no conf/algo/td3_delayed.yaml: td3 needs a checkout "
-                               "with algo=td3_delayed (skipped)")
-        proc = subprocess.run(cmd, cwd=REPO if trainer == "sb3" else args.example_root, env=env,
-                              capture_output=True, text=True)
+            raise RuntimeError(
+                f"{args.example_root} has no conf/algo/td3_delayed.yaml: td3 needs a checkout "
+                "with algo=td3_delayed (skipped)"
+            )
+        proc = subprocess.run(
+            cmd, cwd=REPO if trainer == "sb3" else args.example_root, env=env, capture_output=True, text=True
+        )
         if proc.returncode:
             raise RuntimeError(f"exit {proc.returncode}: {proc.stderr.strip()[-2000:]}")
         if trainer == "sb3":
@@ -159,14 +189,34 @@ def sb3_worker(args) -> dict:
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.noise import NormalActionNoise
 
-    env_cfg = OmegaConf.load(REPO / "conf" / "env" / f"{args.env}.yaml")
+    sys.path.insert(0, str(REPO / "examples"))
+    from config_schema import EnvConfig  # the env file holds what differs from the schema's defaults
+
+    env_cfg = OmegaConf.merge(
+        OmegaConf.structured(EnvConfig), OmegaConf.load(REPO / "conf" / "env" / f"{args.env}.yaml")
+    )
     env = gym.make(args.env, max_episode_steps=env_cfg.max_episode_steps)
     act_dim = env.action_space.shape[-1]
     noise = NormalActionNoise(np.zeros(act_dim), env_cfg.exploration_noise * np.ones(act_dim))
-    model = TD3("MlpPolicy", env, learning_rate=1e-3, buffer_size=1_000_000, learning_starts=args.warmup,
-                batch_size=256, tau=0.005, gamma=0.99, train_freq=(1000, "step"), gradient_steps=1000,
-                action_noise=noise, policy_delay=2, target_policy_noise=0.2, target_noise_clip=0.5,
-                policy_kwargs=dict(net_arch=[400, 300]), seed=args.seed, device="cpu")
+    model = TD3(
+        "MlpPolicy",
+        env,
+        learning_rate=1e-3,
+        buffer_size=1_000_000,
+        learning_starts=args.warmup,
+        batch_size=256,
+        tau=0.005,
+        gamma=0.99,
+        train_freq=(1000, "step"),
+        gradient_steps=1000,
+        action_noise=noise,
+        policy_delay=2,
+        target_policy_noise=0.2,
+        target_noise_clip=0.5,
+        policy_kwargs=dict(net_arch=[400, 300]),
+        seed=args.seed,
+        device="cpu",
+    )
     clock = {"start": None, "train": 0.0, "collect": 0.0, "steps": 0}
 
     class StartClock(BaseCallback):
@@ -182,6 +232,7 @@ def sb3_worker(args) -> dict:
             if timing:
                 clock[name] += time.perf_counter() - t0
             return out
+
         return wrapper
 
     train = timed("train", model.train)
@@ -194,10 +245,14 @@ def sb3_worker(args) -> dict:
     model.learn(total_timesteps=args.warmup + args.frames, callback=StartClock())
     seconds = time.perf_counter() - clock["start"]
     steps = clock["steps"]
-    return {"fps": args.frames / seconds, "ms_update": clock["train"] / steps * 1e3 if steps else None,
-            "ms_frame": clock["collect"] / args.frames * 1e3, "gradient_steps": steps,
-            "phases_ms_per_frame": {name: clock[name] / args.frames * 1e3 for name in ("collect", "train")},
-            "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+    return {
+        "fps": args.frames / seconds,
+        "ms_update": clock["train"] / steps * 1e3 if steps else None,
+        "ms_frame": clock["collect"] / args.frames * 1e3,
+        "gradient_steps": steps,
+        "phases_ms_per_frame": {name: clock[name] / args.frames * 1e3 for name in ("collect", "train")},
+        "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+    }
 
 
 # ----------------------------------------------------------------------------- report
@@ -208,6 +263,7 @@ def median(values: list) -> float | None:
 
 def aggregate(records: list[dict]) -> list[dict]:
     """Median over rounds per (label, trainer, threads), and frames/s over SB3's (same label and threads)."""
+
     def key(r: dict) -> tuple:
         return r.get("label", ""), r["trainer"], r["threads"]
 
@@ -215,11 +271,19 @@ def aggregate(records: list[dict]) -> list[dict]:
     for label, trainer, threads in dict.fromkeys(map(key, records)):
         runs = [r for r in records if key(r) == (label, trainer, threads)]
         phases = [r.get("phases_ms_per_frame") or {} for r in runs]
-        rows.append({"label": label, "trainer": trainer, "threads": threads, "runs": len(runs),
-                     "failed": sum("error" in r for r in runs),
-                     **{m: median([r.get(m) for r in runs]) for m in METRICS},
-                     "phases_ms_per_frame": {p: median([ph.get(p) for ph in phases])
-                                             for p in dict.fromkeys(p for ph in phases for p in ph)}})
+        rows.append(
+            {
+                "label": label,
+                "trainer": trainer,
+                "threads": threads,
+                "runs": len(runs),
+                "failed": sum("error" in r for r in runs),
+                **{m: median([r.get(m) for r in runs]) for m in METRICS},
+                "phases_ms_per_frame": {
+                    p: median([ph.get(p) for ph in phases]) for p in dict.fromkeys(p for ph in phases for p in ph)
+                },
+            }
+        )
     sb3 = {(row["label"], row["threads"]): row["fps"] for row in rows if row["trainer"] == "sb3"}
     for row in rows:
         base = sb3.get((row["label"], row["threads"]))
@@ -231,12 +295,22 @@ def markdown(rows: list[dict]) -> str:
     def fmt(value, spec: str) -> str:
         return "-" if value is None else format(value, spec)
 
-    lines = ["| label | trainer | threads | frames/s | ms/update | ms/frame | grad steps | peak MB "
-             "| frames/s vs sb3 |", "|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| label | trainer | threads | frames/s | ms/update | ms/frame | grad steps | peak MB | frames/s vs sb3 |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for r in rows:
-        cells = [r["label"], r["trainer"], r["threads"], fmt(r["fps"], ".1f"), fmt(r["ms_update"], ".2f"),
-                 fmt(r["ms_frame"], ".3f"), fmt(r["gradient_steps"], ".0f"), fmt(r["peak_mb"], ".0f"),
-                 fmt(r["fps_vs_sb3"], ".2f")]
+        cells = [
+            r["label"],
+            r["trainer"],
+            r["threads"],
+            fmt(r["fps"], ".1f"),
+            fmt(r["ms_update"], ".2f"),
+            fmt(r["ms_frame"], ".3f"),
+            fmt(r["gradient_steps"], ".0f"),
+            fmt(r["peak_mb"], ".0f"),
+            fmt(r["fps_vs_sb3"], ".2f"),
+        ]
         lines.append("| " + " | ".join(map(str, cells)) + " |")
     return "\n".join(lines)
 
@@ -248,8 +322,12 @@ def machine() -> dict:
         except importlib.metadata.PackageNotFoundError:
             return "not installed"
 
-    return {"cpu_count": os.cpu_count(), "load_1min": os.getloadavg()[0], "python": sys.version.split()[0],
-            **{name: version(name) for name in ("torch", "torchrl", "stable-baselines3")}}
+    return {
+        "cpu_count": os.cpu_count(),
+        "load_1min": os.getloadavg()[0],
+        "python": sys.version.split()[0],
+        **{name: version(name) for name in ("torch", "torchrl", "stable-baselines3")},
+    }
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -262,8 +340,7 @@ def main(argv: list[str] | None = None) -> None:
     info = machine()
     print(", ".join(f"{k} {v}" for k, v in info.items()))
     if info["load_1min"] > 0.5:
-        print(f"WARNING: 1-min load average {info['load_1min']:.2f} > 0.5: something else is running",
-              file=sys.stderr)
+        print(f"WARNING: 1-min load average {info['load_1min']:.2f} > 0.5: something else is running", file=sys.stderr)
     records = []
     for rnd in range(args.rounds):
         for threads in args.threads:

@@ -1,30 +1,56 @@
-"""Behaviour cloning on the teacher demonstrations, the ``algo=bc`` baseline of ``sail_td3.py``.
+"""Behaviour cloning on the teacher demonstrations (``algo=bc``), the offline baseline.
 
-The actor (the same network as TD3's) regresses the teacher's actions with TorchRL's
-``BCLoss`` (MSE), offline: no env frames are collected. It is then evaluated like every
-other method, and the run folder holds the same files (``summary.json`` with
-``"offline": true`` and ``frames: 0``, ``eval/return`` logged at frame 0, a checkpoint).
+    python examples/bc.py algo=bc env=Hopper-v4 teacher.path=<teacher.npz|dataset folder>
+
+The actor (the same network as TD3's in ``sail_td3.py``) regresses the teacher's actions with
+TorchRL's ``BCLoss`` (MSE), offline: no env frames are collected. It trains
+``ceil(algo.bc.epochs * teacher transitions / algo.bc.batch_size)`` steps, then is evaluated like
+every other method, and the run folder holds the same files (``summary.json`` with
+``"offline": true`` and ``frames: 0``, ``eval/return`` logged at frame 0, a checkpoint). The
+same config (``conf/config.yaml``) and overrides as ``sail_td3.py``; ``algo=`` must name a
+behaviour-cloning method (``algo.learner=bc``).
 """
+
 from __future__ import annotations
+
+from mujoco_gl import check_mujoco_gl
+
+check_mujoco_gl()  # before TorchRL imports MuJoCo, which loads the MUJOCO_GL backend on import
 
 import math
 import time
 from pathlib import Path
 
+import hydra
 import torch
 import tqdm
+from config_schema import check_config, check_script, register_config_schema
+from hydra.core.hydra_config import HydraConfig
+from run_utils import evaluate, log_metrics, logger_states, make_loggers, make_run, seed_everything, write_run_summary
 from torchrl.checkpoint import Checkpoint, GlobalRNGState
 from torchrl.objectives import BCLoss
-
-from torchrl_sail import DivergenceCheck
-
-from utils import evaluate, log_metrics, logger_states, make_agent, make_env, make_loggers, make_teacher, new_run, \
-    start_or_resume, write_summary
+from utils import make_agent, make_env, make_teacher
 from video import log_video, make_render_env
 
+from torchrl_sail import DivergenceCheck
+from torchrl_sail.runs import checkpoint_dir, resume_mode, start_or_resume
 
-def run_bc(cfg, run_dir: Path, resuming: bool) -> None:
-    """Trains ``ceil(epochs * teacher transitions / batch_size)`` BC steps, then evaluates and saves."""
+register_config_schema()  # the typed schema conf/config.yaml extends: Hydra checks every value against it
+
+
+@hydra.main(version_base="1.3", config_path="../conf", config_name="config")
+def main(cfg):  # noqa: F821
+    check_script(cfg, "bc.py")  # the off-policy methods: sail_td3.py; algo=gail, pofd: gail.py
+    check_config(cfg)
+    if cfg.threads:
+        torch.set_num_threads(cfg.threads)
+    run_dir = Path(HydraConfig.get().runtime.output_dir)
+    resuming = resume_mode(run_dir, cfg.resume, cfg.collector.total_frames)
+    if resuming is None:  # resume=auto on a finished run (e.g. a rerun matrix)
+        print(f"{run_dir} holds a finished run: skipped (resume=auto).")
+        return
+    seed_everything(cfg.seed)
+
     env = make_env(cfg, cfg.seed + 10_000)  # evaluation only
     teacher, teacher_return, teacher_source = make_teacher(cfg, env)
     actor, _, _ = make_agent(cfg, env)
@@ -32,11 +58,11 @@ def run_bc(cfg, run_dir: Path, resuming: bool) -> None:
     optimizer = torch.optim.Adam(loss.actor_network_params.flatten_keys().values(), lr=cfg.algo.bc.lr)
     steps = math.ceil(cfg.algo.bc.epochs * len(teacher) / cfg.algo.bc.batch_size)
 
-    run = new_run(cfg)
+    run = make_run(cfg)
     checkpoint = Checkpoint(actor=actor, optim_actor=optimizer, rng=GlobalRNGState(), run=run)
     # The checkpoint is written once training is done: a resumed BC run has nothing left to train,
     # and its logs (indexed by BC steps, not frames) stay as they are.
-    start_or_resume(checkpoint, run_dir, cfg, run, resuming, optimizers=[optimizer], truncate_logs=False)
+    start_or_resume(checkpoint, run_dir, run, resuming, optimizers=[optimizer], truncate_logs=False, config=cfg)
     loggers = make_loggers(cfg, run_dir, run["loggers"])
 
     divergence = DivergenceCheck({"loss": loss}, unit="BC step")  # BC's checkpoint is written once, after training
@@ -56,12 +82,24 @@ def run_bc(cfg, run_dir: Path, resuming: bool) -> None:
         if cfg.eval.video_every_frames:  # offline: the one evaluation (frame 0) gets the one video
             log_video(loggers, make_render_env(cfg, cfg.seed + 30_000, cfg.eval.video_size), actor, cfg, run_dir, 0)
         run["loggers"] = logger_states(loggers)
-        checkpoint.save(run_dir / "checkpoint")
+        checkpoint.save(checkpoint_dir(run_dir))
 
     final = run["evals"][0][1]
-    write_summary(
-        run_dir, cfg, teacher_return=teacher_return, alpha_switch_frame=None, teacher_source=teacher_source,
-        offline=True, frames=0, gradient_steps=run["gradient_steps"], final_eval_return=final,
-        best_eval_return=final, passed_teacher_at_frame=0 if final > teacher_return else None,
+    write_run_summary(
+        run_dir,
+        cfg,
+        teacher_return=teacher_return,
+        alpha_switch_frame=None,
+        teacher_source=teacher_source,
+        offline=True,
+        frames=0,
+        gradient_steps=run["gradient_steps"],
+        final_eval_return=final,
+        best_eval_return=final,
+        passed_teacher_at_frame=0 if final > teacher_return else None,
         train_seconds=run["train_seconds"],
     )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,20 +1,29 @@
-"""The typed schema of ``conf/config.yaml`` (Hydra structured configs).
+"""The config of the training scripts: its typed schema, the source of every default, and its checks.
 
-``config.yaml`` lists ``sail_config`` first in its defaults, so every YAML file and every
-command-line override is merged into these dataclasses: a value of the wrong type
-(``optim.lr=abc``), a choice outside its set (``network.activation=gelu``) or an unknown key
-is rejected by Hydra with the full key named, before anything is built. The YAML files keep
-the values and their comments; the hand-written ``check_config`` keeps only what a type
-cannot say (ranges, and rules across fields).
+``conf/config.yaml`` lists ``sail_config`` (:class:`SAILConfig`) first in its defaults, so every
+YAML file and every command-line override is merged into these dataclasses: a value of the
+wrong type (``optim.lr=abc``), a choice outside its set (``network.activation=gelu``) or an
+unknown key is rejected by Hydra with the full key named, before anything is built.
+
+The defaults here are SAIL's on MuJoCo, the SAIL authors' code (see README "Where we follow the
+paper ..."). The YAML files hold only what differs from them: ``conf/env/<env>.yaml`` per env,
+``conf/algo/<method>.yaml`` per method, ``conf/algo_env/<method>_<env>.yaml`` where a method's
+own code departs from the env file, and ``conf/config.yaml`` the defaults list and Hydra's
+settings. :func:`check_config` keeps what a type cannot say: ranges, rules across fields, and
+options that need a package or device this machine lacks. :data:`SCRIPTS` names the script
+that trains each ``algo.learner``.
 """
+
 from __future__ import annotations
 
+import importlib.util
+import math
 from dataclasses import dataclass, field
 from enum import Enum
-from typing import Any, List, Optional
+from typing import Any, Dict, List, Optional
 
 from hydra.core.config_store import ConfigStore
-from omegaconf import MISSING
+from omegaconf import II, MISSING, DictConfig
 
 
 class Choice(str, Enum):
@@ -45,71 +54,101 @@ VideoFormat = Choice("VideoFormat", {name: name for name in ("mp4", "gif")})
 
 @dataclass
 class EnvConfig:
+    """``conf/env/<name>.yaml`` sets ``name`` and what differs from these (the SAIL authors' Hopper settings)."""
+
     name: str = MISSING
     max_episode_steps: int = 1000
-    exploration_noise: float = 0.2
-    replay_size: int = 1_000_000
+    exploration_noise: float = 0.2  # std of the Gaussian action noise after warm-up (authors' sail.yml)
+    replay_size: int = 1_000_000  # agent replay buffer R_B, transitions
+    # teacher ring size in transitions for teacher.eviction=fifo (authors' demo_buffer_size)
     teacher_capacity: int = 100_000
+    # keyword arguments of gymnasium.make, added with Hydra's +: +env.kwargs.use_contact_forces=true (Ant-v4)
+    kwargs: Dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass
 class AlphaConfig:
-    mode: AlphaMode = AlphaMode.dynamic
+    """The teacher share alpha of TD3 batches (``round(alpha * batch_size)`` teacher rows)."""
+
+    mode: AlphaMode = (
+        AlphaMode.dynamic
+    )  # dynamic: `initial` until the first promotion, then `final` | linear | constant
     initial: float = 0.5
     final: float = 0.0
-    anneal_frames: Optional[int] = None
+    anneal_frames: Optional[int] = None  # for mode=linear
 
 
 @dataclass
 class RewardConfig:
+    """The reward the learner learns from, recomputed with the current D at sample time."""
+
+    # discriminator: D's reward alone (SAIL, DAC) | env: the delayed env reward alone (no D is
+    # trained) | shaped: the delayed env reward + coef * D's reward (pofd, pofd_td3)
     source: RewardSource = RewardSource.discriminator
-    kind: RewardKind = RewardKind.gail
+    kind: RewardKind = RewardKind.gail  # gail: -log(1 - D) (SAIL, GAIL) | airl: log D - log(1 - D) (DAC, AIRL)
     clip: Optional[List[float]] = None  # [low, high]: D clipped before the reward (the SAIL authors' DAC)
-    coef: float = 1.0
-    coef_decay: float = 1.0  # coef *= coef_decay after every on-policy batch (POfD's lambda_1 schedule)
+    coef: float = 1.0  # weight of D's reward
+    # learner=ppo: coef *= coef_decay after every on-policy batch (POfD's lambda_1 schedule)
+    coef_decay: float = 1.0
 
 
 @dataclass
 class RNDConfig:
-    coef: float = 1.0
-    lr: float = 1.0e-4
-    cells: List[int] = field(default_factory=lambda: [256, 256])
+    """A random-network-distillation bonus (Burda et al. 2019) added to the reward (algo=sail_rnd)."""
+
+    coef: float = 1.0  # r = -log(1 - D) + coef * bonus (bonus / its running std, clipped at 5); ours
+    lr: float = 1.0e-4  # the predictor's Adam (RND's value)
+    cells: List[int] = field(default_factory=lambda: [256, 256])  # target and predictor MLPs
     features: int = 64
 
 
 @dataclass
 class PPOConfig:
-    frames_per_batch: int = 2048
+    """The PPO generator of GAIL and POfD (learner=ppo): TorchRL's sota PPO MuJoCo settings, which
+    its GAIL example shares."""
+
+    frames_per_batch: int = 2048  # on-policy batch (TorchRL: 2048; the authors' GAIL baseline: 2048 with TRPO)
     epochs: int = 10
     minibatch_size: int = 64
-    lr: float = 3.0e-4
+    lr: float = 3.0e-4  # Adam, eps 1e-5, for the actor and the critic
     clip_epsilon: float = 0.2
     gae_lambda: float = 0.95
     entropy_coef: float = 0.0
     critic_coef: float = 0.25
     loss_critic_type: LossFunction = LossFunction.l2
-    anneal_lr: bool = True
+    anneal_lr: bool = True  # lr * (1 - updates / all updates of collector.total_frames), per update
     anneal_clip_epsilon: bool = False
+    # the actor and critic read TorchRL's VecNorm of the observations (decay 0.99999, eps 1e-2),
+    # clipped to [-10, 10], the time feature raw; D reads the raw observations, as the teacher's are
     normalize_observations: bool = True
     cells: List[int] = field(default_factory=lambda: [64, 64])
 
 
 @dataclass
 class SACConfig:
-    alpha_init: float = 1.0
-    alpha_lr: float = 3.0e-4
+    """learner=sac: TorchRL's SACLoss (the TD3 settings lr, gamma, tau, batch apply)."""
+
+    alpha_init: float = 1.0  # initial entropy temperature (TorchRL's default)
+    alpha_lr: float = 3.0e-4  # its Adam (TorchRL's sota SAC)
 
 
 @dataclass
 class BCConfig:
-    epochs: int = 100
+    """Behaviour cloning (learner=bc): TorchRL's BCLoss (MSE on the teacher's actions), Adam."""
+
+    epochs: int = 100  # passes over the teacher buffer (the authors' BC: 100 x n_episodes epochs, lr 1e-3)
     batch_size: int = 64
     lr: float = 1.0e-3
 
 
 @dataclass
 class NStepConfig:
-    """DDPGfD's critic loss L_1 + lambda1 * L_n: the n-step TD loss on the same sampled rows."""
+    """DDPGfD's critic loss L_1 + lambda1 * L_n: the n-step TD loss on the same sampled rows.
+
+    The paper's n and lambda1 could not be read offline: n is the one DQfD (Hester et al. 2018,
+    same group) is commonly cited with, lambda1 the public reimplementations' (medipixel/rl_algorithms,
+    MrSyee/pg-is-all-you-need).
+    """
 
     n: int = 10
     lambda1: float = 1.0
@@ -117,18 +156,26 @@ class NStepConfig:
 
 @dataclass
 class AlgoConfig:
+    """The method: SAIL (the authors' task gail-lfd-adaptive-dynamic) with these defaults;
+    ``conf/algo/<method>.yaml`` sets ``name`` and what differs."""
+
     name: str = MISSING
+    # td3 | sac: the off-policy loop (examples/sail_td3.py) | ppo: GAIL, POfD, on-policy
+    # (examples/gail.py) | bc: behaviour cloning, offline (examples/bc.py)
     learner: Learner = Learner.td3
-    adaptive: bool = True
+    adaptive: bool = True  # promote agent trajectories with r_e > C into the teacher buffer
     alpha: AlphaConfig = field(default_factory=AlphaConfig)
+    # replay: all of R_B (off-policy D) | recent: the last `recent_window` transitions
     discriminator_agent_data: AgentData = AgentData.replay
     recent_window: int = 2048
     reward: RewardConfig = field(default_factory=RewardConfig)
+    # DAC's absorbing state after terminations; bootstrapped through (terminations only) unless
+    # absorbing_bootstrap=false; the agent's absorbing transitions store the zero or a random action
     absorbing_state: bool = False
     absorbing_bootstrap: bool = True
     absorbing_action: AbsorbingAction = AbsorbingAction.zero
-    rnd: Optional[RNDConfig] = None
-    ppo: Optional[PPOConfig] = None
+    rnd: Optional[RNDConfig] = None  # a random-network-distillation bonus added to the reward (sail_rnd)
+    ppo: Optional[PPOConfig] = None  # learner=ppo: the PPO generator's settings (gail, pofd)
     sac: SACConfig = field(default_factory=SACConfig)
     bc: BCConfig = field(default_factory=BCConfig)
     nstep: Optional[NStepConfig] = None  # DDPGfD's n-step loss (null: the 1-step TD loss alone)
@@ -137,32 +184,42 @@ class AlgoConfig:
 
 @dataclass
 class CollectorConfig:
+    # the paper's evaluation point (Figure 2, Table 1); the authors' code runs 3000000
     total_frames: int = 1_000_000
-    init_random_frames: int = 10_000
-    frames_per_batch: int = 500
-    num_workers: int = 1
+    init_random_frames: int = 10_000  # uniform random actions, then learning starts (authors: learning_starts)
+    frames_per_batch: int = 500  # one collector batch = the discriminator cadence
+    num_workers: int = 1  # collector processes / actors; > 1 alone selects backend=process
+    # TorchRL's Collector backend: null picks `direct` (one process) for num_workers=1, else
+    # `process` (MultiSyncCollector). `ray` runs the workers as Ray actors (pip install ray).
     backend: Optional[Backend] = None
-    backend_options: Any = None  # forwarded to TorchRL's Collector as it is (a mapping or null)
+    # forwarded to TorchRL's Collector(backend_options=...) as it is (a mapping or null), e.g. for
+    # ray: {ray_init_config: {address: auto}, remote_configs: {num_cpus: 1, num_gpus: 0}}
+    backend_options: Any = None
 
 
 @dataclass
 class DiscriminatorOptimConfig:
-    lr: float = 1.0e-3
+    lr: float = 1.0e-3  # the authors' effective D learning rate (the TD3 lr)
     every_frames: int = 500
-    steps: int = 10
-    batch_size: int = 256
-    entropy_coef: float = 0.01
+    steps: int = 10  # minibatches per D update ...
+    batch_size: int = 256  # ... each of 256 teacher + 256 agent rows
+    entropy_coef: float = 0.01  # a PyTorch port reports D saturation at 0.01 and success at 0.05
     gp_coef: float = 10.0
 
 
 @dataclass
 class LRDecayConfig:
+    """The actor's stepwise learning-rate decay, ``lr * rate ** (frames // every_frames)``: Kostrikov et
+    al.'s DAC halves it every 1e5 frames (algo=dac_published)."""
+
     rate: float = 0.5
     every_frames: int = 100_000
 
 
 @dataclass
 class OptimConfig:
+    """TD3 (authors' sail.py / sail.yml) and the discriminator's optimisation."""
+
     batch_size: int = 256
     lr: float = 1.0e-3
     gamma: float = 0.99
@@ -171,15 +228,21 @@ class OptimConfig:
     policy_noise: float = 0.2
     noise_clip: float = 0.5
     loss_function: LossFunction = LossFunction.l2
-    train_every_frames: int = 1000
-    updates_per_train: int = 1000
-    truncation_is_terminal: bool = True
+    train_every_frames: int = 1000  # every 1000 env frames ...
+    updates_per_train: int = 1000  # ... 1000 gradient steps (critic each, actor every policy_delay)
+    truncation_is_terminal: bool = True  # authors: done = terminated | truncated ends bootstrapping
     discriminator: DiscriminatorOptimConfig = field(default_factory=DiscriminatorOptimConfig)
+    # The TD3 step (torchrl_sail.TD3Update): fused = plain tensor operations on the loss's
+    # parameters (fast path) | loss = SAILLoss.value_loss/actor_loss + SoftUpdate (reference);
+    # both compute the same step (tested equal to float rounding).
     implementation: Implementation = Implementation.fused
+    # fp32 | bf16: autocast the TD3 network evaluations to bfloat16 (opt-in; fast on CPUs with
+    # AMX and on CUDA). Parameters, optimizer states and losses stay float32.
     precision: Precision = Precision.fp32
-    actor_updates_after: int = 0
-    actor_max_grad_norm: Optional[float] = None
-    actor_lr_decay: Optional[LRDecayConfig] = None
+    # The actor's extras (all off by default; algo=dac_published sets them as Kostrikov et al.'s DAC):
+    actor_updates_after: int = 0  # the actor is first updated at this gradient step (then every policy_delay-th)
+    actor_max_grad_norm: Optional[float] = None  # clip the actor's gradients to this global norm
+    actor_lr_decay: Optional[LRDecayConfig] = None  # {rate, every_frames}: actor lr * rate ** (frames // every_frames)
 
 
 @dataclass
@@ -189,41 +252,54 @@ class NetworkConfig:
     activation: Activation = Activation.relu
     discriminator_cells: List[int] = field(default_factory=lambda: [256, 256])
     discriminator_activation: Activation = Activation.tanh
-    normalize_observations: bool = True
+    normalize_observations: bool = True  # D's running observation normalisation
 
 
 @dataclass
 class LoggerConfig:
-    backends: List[LoggerBackend] = field(default_factory=lambda: [LoggerBackend.csv, LoggerBackend.wandb])
-    wandb_mode: WandbMode = WandbMode.offline
+    """TorchRL loggers; csv is always on (plots and summary read it)."""
+
+    backends: List[LoggerBackend] = field(  # any of csv, wandb, tensorboard
+        default_factory=lambda: [LoggerBackend.csv, LoggerBackend.wandb]
+    )
+    wandb_mode: WandbMode = WandbMode.offline  # no login or network needed; `wandb sync` later
     project: str = "torchrl_sail"
     log_every_frames: int = 1000
 
 
 @dataclass
 class TeacherConfig:
+    # a .npz file (the paper's format), a demonstration folder or minari:<dataset id>; null = the
+    # teacher shipped for env.name (examples/teachers/<env.name>)
     path: Optional[str] = None
-    k: int = 10
+    k: int = 10  # size K of the window W_k that sets the promotion threshold C (authors: 10)
+    # Which trajectories R_T keeps:
+    #   topk:  the K best trajectories, demonstrations included (default; the paper's "top-K" reading)
+    #   union: every admitted trajectory, R_T <- R_T U tau (the paper's Algorithm 1 read literally)
+    #   fifo:  a ring of `capacity` transitions (the authors' code)
     eviction: Eviction = Eviction.topk
-    capacity: int = 100_000
+    capacity: int = II("env.teacher_capacity")  # ring size for eviction=fifo
 
 
 @dataclass
 class EvalConfig:
-    every_frames: int = 10_000
+    every_frames: int = 10_000  # deterministic evaluation cadence (the authors' code has none by default)
     episodes: int = 5
-    video_every_frames: int = 0
-    video_format: VideoFormat = VideoFormat.mp4
+    video_every_frames: int = 0  # 0: off | N: every N frames, one deterministic episode to videos/ (and wandb)
+    video_format: VideoFormat = VideoFormat.mp4  # mp4 (needs the `video` extra: imageio-ffmpeg) | gif
+    # width, height of the offscreen render (MUJOCO_GL=egl without a display)
     video_size: List[int] = field(default_factory=lambda: [320, 240])
 
 
 @dataclass
 class CheckpointConfig:
-    every_frames: int = 50_000
+    every_frames: int = 50_000  # 0 disables; the last checkpoint is also written at the end
 
 
 @dataclass
 class SAILConfig:
+    """``conf/config.yaml``: the training scripts' config (``sail_td3.py``, ``gail.py``, ``bc.py``)."""
+
     env: EnvConfig = field(default_factory=EnvConfig)
     algo: AlgoConfig = field(default_factory=AlgoConfig)
     collector: CollectorConfig = field(default_factory=CollectorConfig)
@@ -235,29 +311,327 @@ class SAILConfig:
     checkpoint: CheckpointConfig = field(default_factory=CheckpointConfig)
     seed: int = 0
     device: str = "cpu"
-    threads: int = 1
-    resume: Any = False  # true | false | auto: a union a schema cannot type, checked by check_config
+    threads: int = 1  # torch intra-op threads; 1 is fastest on 2 shared cores (measured), 0 keeps torch's default
+    # true: continue the run in hydra.run.dir from its last checkpoint | false: start one (refused
+    # if the folder holds a checkpoint) | auto: continue if there is a checkpoint, skip a finished
+    # run, else start (for matrices that must survive interruption). A union a schema cannot type:
+    # check_config checks it.
+    resume: Any = False
 
 
 @dataclass
 class EvaluateConfig:
     """``conf/evaluate.yaml``: ``examples/evaluate.py``'s settings."""
 
-    run_dir: str = MISSING
-    episodes: int = 10
-    seed: Optional[int] = None
-    video: bool = False
-    video_format: VideoFormat = VideoFormat.mp4
+    run_dir: str = MISSING  # a run folder written by a training script (config.yaml + checkpoint/)
+    episodes: int = 10  # deterministic episodes, each from a fresh reset of one seeded env
+    seed: Optional[int] = None  # null: the run's seed + 20000 (neither its training nor its eval stream)
+    video: bool = False  # true: also record the first episode (replayed on a rendering env)
+    video_format: VideoFormat = VideoFormat.mp4  # mp4 (needs the `video` extra: imageio-ffmpeg) | gif
+    # width, height of the offscreen render (MUJOCO_GL=egl without a display)
     video_size: List[int] = field(default_factory=lambda: [320, 240])
-    out: Optional[str] = None
+    out: Optional[str] = None  # the JSON file; null: <run_dir>/evaluation.json (the video beside it)
+    # a Minari dataset id (e.g. sail/Hopper-v4/sail-seed0-v0): the episodes, dense rewards
     export: Optional[str] = None
-    overwrite: bool = False
-    device: Optional[str] = None
+    overwrite: bool = False  # replace an existing dataset of that id
+    device: Optional[str] = None  # null: the run's device; e.g. cpu to evaluate a CUDA-trained run here
     threads: int = 1
 
 
+@dataclass
+class MakeTeacherAlgoConfig:
+    """The part of ``algo`` that ``make_agent`` reads: TD3's deterministic MLP + tanh actor."""
+
+    learner: Learner = Learner.td3
+    absorbing_state: bool = False
+
+
+@dataclass
+class MakeTeacherConfig:
+    """``conf/make_teacher.yaml``: ``examples/make_teacher.py``'s settings (TD3 on the dense reward)."""
+
+    env: EnvConfig = field(default_factory=EnvConfig)
+    network: NetworkConfig = field(default_factory=NetworkConfig)
+    seed: int = 0
+    device: str = "cpu"
+    threads: int = 1
+    frames: int = 100_000  # TD3 budget (dense reward)
+    init_random_frames: int = 5000
+    frames_per_batch: int = 1000
+    updates_per_batch: int = 1000
+    batch_size: int = 256
+    lr: float = 1.0e-3
+    gamma: float = 0.99
+    tau: float = 0.005
+    policy_delay: int = 2
+    eval_every_frames: int = 5000
+    stop_at_return: Optional[float] = None  # stop training once a deterministic episode reaches this dense return
+    max_return: Optional[float] = None  # only record a trajectory whose return is at most this (keeps the teacher weak)
+    out: str = "examples/teachers/${env.name}"  # a directory: see save_demonstrations
+    algo: MakeTeacherAlgoConfig = field(default_factory=MakeTeacherAlgoConfig)
+
+
 def register_config_schema() -> None:
-    """Stores :class:`SAILConfig` as ``sail_config`` and :class:`EvaluateConfig` as ``evaluate_config``,
-    the first entries of ``conf/config.yaml``'s and ``conf/evaluate.yaml``'s defaults."""
-    ConfigStore.instance().store(name="sail_config", node=SAILConfig)
-    ConfigStore.instance().store(name="evaluate_config", node=EvaluateConfig)
+    """Stores the schemas the first entries of the ``conf/`` defaults lists name: :class:`SAILConfig`
+    as ``sail_config`` (``config.yaml``), :class:`EvaluateConfig` as ``evaluate_config``
+    (``evaluate.yaml``) and :class:`MakeTeacherConfig` as ``make_teacher_config`` (``make_teacher.yaml``)."""
+    store = ConfigStore.instance()
+    store.store(name="sail_config", node=SAILConfig)
+    store.store(name="evaluate_config", node=EvaluateConfig)
+    store.store(name="make_teacher_config", node=MakeTeacherConfig)
+
+
+# ----------------------------------------------------------------------------- scripts
+#: The script that trains the methods of each ``algo.learner``: one entry point per family.
+SCRIPTS = {"td3": "sail_td3.py", "sac": "sail_td3.py", "ppo": "gail.py", "bc": "bc.py"}
+_FAMILIES = {
+    "sail_td3.py": "the off-policy methods (algo.learner=td3 or sac: sail and its ablations, dac, "
+    "dac_published, td3_delayed, ddpgfd, pofd_td3)",
+    "gail.py": "the on-policy methods (algo.learner=ppo: gail, pofd)",
+    "bc.py": "behaviour cloning (algo.learner=bc: bc)",
+}
+
+
+def check_script(cfg: DictConfig, script: str) -> None:
+    """Refuses a method of another family than ``script``'s, naming the script that runs it.
+
+    Raises:
+        ValueError: ``algo.learner`` belongs to another script of :data:`SCRIPTS`.
+    """
+    learner = str(cfg.algo.learner)
+    if SCRIPTS[learner] != script:
+        raise ValueError(
+            f"examples/{script} runs {_FAMILIES[script]}; algo={cfg.algo.name} has "
+            f"algo.learner={learner}: run python examples/{SCRIPTS[learner]} algo={cfg.algo.name} "
+            f"with the same overrides"
+        )
+
+
+# ----------------------------------------------------------------------------- checks
+def masks_absorbing_actions(cfg: DictConfig) -> bool:
+    """DAC as published: the actor outputs 0 at the absorbing state, which is bootstrapped through."""
+    return bool(cfg.algo.absorbing_state and cfg.algo.absorbing_bootstrap)
+
+
+def check_config(cfg: DictConfig) -> None:
+    """Rejects invalid values before anything is built, naming the key and the fix.
+
+    Types, choices and unknown keys are the schema's (Hydra rejects them while composing). What
+    is left here is what a type cannot say: ranges, rules across fields, and options that need
+    a package or a device this machine lacks.
+
+    Raises:
+        ValueError: ``config <key>=<value>: <why>`` for the first invalid value.
+    """
+    import torch  # here: composing a config (e.g. benchmarks/run_matrix.py) needs no torch
+
+    def fail(key, value, why):
+        raise ValueError(f"config {key}={value!r}: {why}")
+
+    c, o, d = cfg.collector, cfg.optim, cfg.optim.discriminator
+    # across fields: the PPO learner needs its settings block (algo=gail sets it)
+    if cfg.algo.learner == "ppo" and cfg.algo.ppo is None:
+        fail("algo.ppo", None, "algo.learner=ppo needs the PPO settings (algo=gail has them)")
+    # ranges: counts and cadences (0 disables those with low 0)
+    for key, value, low in [
+        ("collector.total_frames", c.total_frames, 1),
+        ("collector.frames_per_batch", c.frames_per_batch, 1),
+        ("collector.num_workers", c.num_workers, 1),
+        ("optim.batch_size", o.batch_size, 2),
+        ("optim.train_every_frames", o.train_every_frames, 1),
+        ("optim.policy_delay", o.policy_delay, 1),
+        ("optim.discriminator.every_frames", d.every_frames, 1),
+        ("optim.discriminator.batch_size", d.batch_size, 1),
+        ("env.replay_size", cfg.env.replay_size, 1),
+        ("eval.episodes", cfg.eval.episodes, 1),
+        *(
+            [
+                ("algo.ppo.frames_per_batch", cfg.algo.ppo.frames_per_batch, 1),
+                ("algo.ppo.epochs", cfg.algo.ppo.epochs, 1),
+                ("algo.ppo.minibatch_size", cfg.algo.ppo.minibatch_size, 1),
+            ]
+            if cfg.algo.learner == "ppo"
+            else []
+        ),
+        ("algo.bc.epochs", cfg.algo.bc.epochs, 1),
+        ("algo.bc.batch_size", cfg.algo.bc.batch_size, 1),
+        ("collector.init_random_frames", c.init_random_frames, 0),
+        ("optim.updates_per_train", o.updates_per_train, 0),
+        ("optim.discriminator.steps", d.steps, 0),
+        ("eval.every_frames", cfg.eval.every_frames, 0),
+        ("eval.video_every_frames", cfg.eval.video_every_frames, 0),
+        ("checkpoint.every_frames", cfg.checkpoint.every_frames, 0),
+    ]:
+        if value < low:
+            fail(key, value, f"must be >= {low}" + (" (0 disables)" if low == 0 else ""))
+    # ranges of real numbers, value sets a type cannot say, rules across fields, and what this machine must have
+    for key, value, ok, why in [
+        ("optim.lr", o.lr, o.lr > 0, "must be > 0"),
+        ("optim.actor_updates_after", o.actor_updates_after, o.actor_updates_after >= 0, "must be >= 0"),
+        (
+            "optim.actor_max_grad_norm",
+            o.actor_max_grad_norm,
+            o.actor_max_grad_norm is None or o.actor_max_grad_norm > 0,
+            "must be > 0, or null (no clipping)",
+        ),
+        (
+            "optim.actor_lr_decay",
+            None if o.actor_lr_decay is None else dict(o.actor_lr_decay),
+            o.actor_lr_decay is None or (0 < o.actor_lr_decay.rate <= 1 and o.actor_lr_decay.every_frames >= 1),
+            "needs 0 < rate <= 1 and every_frames >= 1, or null",
+        ),
+        (
+            "optim.actor_lr_decay",
+            None if o.actor_lr_decay is None else dict(o.actor_lr_decay),
+            o.actor_lr_decay is None or cfg.algo.learner == "td3",
+            "is TD3's (algo.learner=td3)",
+        ),
+        ("optim.discriminator.lr", d.lr, d.lr > 0, "must be > 0"),
+        ("algo.bc.lr", cfg.algo.bc.lr, cfg.algo.bc.lr > 0, "must be > 0"),
+        ("optim.gamma", o.gamma, 0 < o.gamma <= 1, "must be in (0, 1]"),
+        ("optim.tau", o.tau, 0 < o.tau <= 1, "must be in (0, 1]"),
+        ("env.exploration_noise", cfg.env.exploration_noise, cfg.env.exploration_noise >= 0, "must be >= 0"),
+        (
+            "algo.rnd",
+            cfg.algo.rnd,
+            cfg.algo.rnd is None or (c.num_workers == 1 and c.backend in (None, "direct")),
+            "the RND bonus keeps its statistics in the training env: use collector.num_workers=1 and "
+            "collector.backend=null",
+        ),
+        (
+            "algo.absorbing_state",
+            cfg.algo.absorbing_state,
+            not (cfg.algo.absorbing_state and cfg.algo.adaptive),
+            "absorbing states need a fixed teacher (algo.adaptive=false): promotion reads unrewritten trajectories",
+        ),
+        (
+            "optim.precision",
+            o.precision,
+            o.precision == "fp32"
+            or (o.implementation == "fused" and cfg.algo.learner == "td3" and not masks_absorbing_actions(cfg)),
+            "bf16 is TD3's fused step only: optim.implementation=fused, algo.learner=td3, and no bootstrapped "
+            "absorbing states (DAC's masked actor runs the loss's own step)",
+        ),
+        (
+            "algo.reward.clip",
+            cfg.algo.reward.clip,
+            cfg.algo.reward.clip is None
+            or (len(cfg.algo.reward.clip) == 2 and 0 < cfg.algo.reward.clip[0] < cfg.algo.reward.clip[1] < 1),
+            "must be [low, high] with 0 < low < high < 1, or null",
+        ),
+        (
+            "collector.backend",
+            c.backend,
+            c.backend != "direct" or c.num_workers == 1,
+            f"direct runs one worker, but collector.num_workers={c.num_workers}",
+        ),
+        (
+            "collector.backend",
+            c.backend,
+            c.backend != "ray" or importlib.util.find_spec("ray") is not None,
+            "the ray backend needs Ray: pip install ray",
+        ),
+        ("resume", cfg.resume, cfg.resume in (True, False, "auto"), "use true, false or auto"),
+        (
+            "algo.nstep.n",
+            cfg.algo.nstep and cfg.algo.nstep.n,
+            cfg.algo.nstep is None or cfg.algo.nstep.n >= 2,
+            "must be >= 2 (algo.nstep=null for the 1-step TD loss alone)",
+        ),
+        (
+            "algo.nstep.lambda1",
+            cfg.algo.nstep and cfg.algo.nstep.lambda1,
+            cfg.algo.nstep is None or 0 < cfg.algo.nstep.lambda1 < math.inf,
+            "must be a finite number > 0",
+        ),
+        # The n-step sums are of the stored env reward, made when a transition is stored; other
+        # rewards are made at sample time for the 1-step entries only, and promoted, absorbing or
+        # SAC/BC/PPO rows have no n-step view.
+        (
+            "algo.nstep",
+            "set",
+            cfg.algo.nstep is None
+            or (
+                cfg.algo.learner == "td3"
+                and cfg.algo.reward.source == "env"
+                and cfg.algo.rnd is None
+                and not cfg.algo.adaptive
+                and not cfg.algo.absorbing_state
+            ),
+            "the n-step loss (DDPGfD) needs algo.learner=td3, algo.reward.source=env, algo.rnd=null, "
+            "algo.adaptive=false and algo.absorbing_state=false",
+        ),
+        (
+            "algo.l2_coef",
+            cfg.algo.l2_coef,
+            0 <= cfg.algo.l2_coef < math.inf and (cfg.algo.l2_coef == 0 or cfg.algo.learner in ("td3", "sac")),
+            "must be a finite number >= 0, and 0 unless algo.learner is td3 or sac (the actor's and the critic's "
+            "Adam weight decay)",
+        ),
+        (
+            "algo.reward.source",
+            cfg.algo.reward.source,
+            cfg.algo.learner != "ppo"
+            or (cfg.algo.reward.source != "env" and cfg.algo.rnd is None and not cfg.algo.absorbing_state),
+            "the PPO generator (gail, pofd) learns from D's reward (discriminator or shaped), without an RND "
+            "bonus or absorbing states",
+        ),
+        (
+            "algo.reward.coef_decay",
+            cfg.algo.reward.coef_decay,
+            0 < cfg.algo.reward.coef_decay <= 1 and (cfg.algo.reward.coef_decay == 1 or cfg.algo.learner == "ppo"),
+            "must be in (0, 1], and 1 unless algo.learner=ppo (it decays the shaping once per on-policy batch)",
+        ),
+        (
+            "collector.backend_options",
+            c.backend_options,
+            c.backend_options is None or isinstance(c.backend_options, DictConfig),
+            "must be a mapping (forwarded to TorchRL's Collector) or null",
+        ),
+        (
+            "device",
+            cfg.device,
+            cfg.device == "cpu" or torch.cuda.is_available(),
+            "CUDA is not available on this machine; use device=cpu",
+        ),
+    ]:
+        if not ok:
+            fail(key, value, why)
+    # Across fields: the off-policy loop runs the D steps and TD3 updates of every cadence crossed
+    # by a collector batch at once, after it: a batch longer than a cadence bunches them, and one
+    # that does not divide it shifts them, so the reward would come from a D that is behind.
+    if cfg.algo.learner in ("td3", "sac"):
+        cadences = [("optim.train_every_frames", o.train_every_frames)]
+        if cfg.algo.reward.source != "env" and d.steps:
+            cadences.insert(0, ("optim.discriminator.every_frames", d.every_frames))
+        for key, every in cadences:
+            if every % c.frames_per_batch:  # a synchronous collector's batch is over all its workers
+                fail(
+                    key,
+                    every,
+                    f"must be a multiple of collector.frames_per_batch={c.frames_per_batch}: a larger "
+                    f"collector batch, or one that does not divide it, runs these updates late or "
+                    f"bunched, so D's reward comes from a stale D (lower collector.frames_per_batch)",
+                )
+    # a list's length and range
+    if len(cfg.eval.video_size) != 2 or min(cfg.eval.video_size) < 16:
+        fail("eval.video_size", list(cfg.eval.video_size), "must be [width, height], each >= 16")
+    # what the chosen outputs need installed
+    if (
+        cfg.eval.video_every_frames
+        and cfg.eval.video_format == "mp4"
+        and importlib.util.find_spec("imageio_ffmpeg") is None
+    ):
+        fail("eval.video_format", "mp4", "MP4 videos need imageio-ffmpeg: pip install -e '.[video]' (or use gif)")
+    if cfg.eval.video_every_frames and "wandb" in cfg.logger.backends and importlib.util.find_spec("moviepy") is None:
+        fail(
+            "eval.video_every_frames",
+            cfg.eval.video_every_frames,
+            "wandb encodes videos with moviepy: pip install -e '.[video]' (or drop wandb from logger.backends)",
+        )
+    if "tensorboard" in cfg.logger.backends and importlib.util.find_spec("tensorboard") is None:
+        fail(
+            "logger.backends",
+            list(cfg.logger.backends),
+            "the tensorboard backend needs the tensorboard package: pip install -e '.[tensorboard]'",
+        )

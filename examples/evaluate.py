@@ -3,7 +3,8 @@
     python examples/evaluate.py run_dir=outputs/Hopper-v4/sail/seed0
     MUJOCO_GL=egl python examples/evaluate.py run_dir=outputs/Hopper-v4/sail/seed0 video=true episodes=20
 
-The run's ``config.yaml`` rebuilds its env and actor (any method of ``sail_td3.py``), the
+The run's ``config.yaml`` rebuilds its env and actor (any method: ``sail_td3.py``, ``gail.py``,
+``bc.py``), the
 checkpoint's weights are loaded, and ``episodes`` deterministic episodes run on a fresh seed
 (the run's seed + 20000 unless ``seed`` is given). The dense return (what the paper reports),
 the delayed reward r_e (what the learner saw) and the episode length are printed and written
@@ -13,6 +14,7 @@ first episode on a rendering env (same seed: the same episode) into ``evaluation
 rewards, as a local Minari dataset (``pip install -e '.[minari]'``): the trained agent's own
 trajectories, shareable and usable as a teacher (``teacher.path=minari:<dataset id>``).
 """
+
 from __future__ import annotations
 
 from mujoco_gl import check_mujoco_gl
@@ -26,29 +28,32 @@ from pathlib import Path
 
 import hydra
 import torch
+from config_schema import register_config_schema
 from omegaconf import OmegaConf
+from run_utils import evaluate_episodes, seed_everything
 from torchrl.checkpoint import Checkpoint
+from utils import copy_observation_norm, make_agent, make_discriminator, make_env, make_losses, make_ppo_models
+from video import make_render_env, record_episode, video_fps, write_video
 
 from torchrl_sail import observation_normalizer
-
-from config_schema import register_config_schema
-from gail import copy_observation_norm, make_ppo_models
-from utils import evaluate_episodes, make_agent, make_discriminator, make_env, make_losses, seed_everything, \
-    write_atomic
-from video import make_render_env, record_episode, video_fps, write_video
+from torchrl_sail.runs import CONFIG, checkpoint_dir, write_atomic
 
 register_config_schema()
 
 
 def load_run(run_dir: Path):
     """The run's resolved config and the frames its checkpoint holds; clear errors for a wrong folder."""
-    config, checkpoint = run_dir / "config.yaml", run_dir / "checkpoint"
+    config, checkpoint = run_dir / CONFIG, checkpoint_dir(run_dir)
     if not config.exists():
-        raise FileNotFoundError(f"run_dir={run_dir}: no config.yaml; point run_dir at a folder written by "
-                                f"examples/sail_td3.py (e.g. outputs/Hopper-v4/sail/seed0)")
+        raise FileNotFoundError(
+            f"run_dir={run_dir}: no config.yaml; point run_dir at a folder written by "
+            f"examples/sail_td3.py, gail.py or bc.py (e.g. outputs/Hopper-v4/sail/seed0)"
+        )
     if not (checkpoint / "manifest.json").exists():
-        raise FileNotFoundError(f"run_dir={run_dir}: no checkpoint/ to evaluate (the run stopped before its first "
-                                f"checkpoint; see checkpoint.every_frames)")
+        raise FileNotFoundError(
+            f"run_dir={run_dir}: no checkpoint/ to evaluate (the run stopped before its first "
+            f"checkpoint; see checkpoint.every_frames)"
+        )
     run = {}
     Checkpoint(run=run).load(checkpoint, components=["run"])
     return OmegaConf.load(config), run
@@ -82,11 +87,20 @@ def episode_transitions(rollout, absorbing_state: bool):
     dense return (the env's own reward is the delayed one), DAC's absorbing indicator dropped."""
     episode_return = rollout["next", "episode_return"].squeeze(-1)
     dense = torch.diff(episode_return, prepend=episode_return.new_zeros(1)).float().unsqueeze(-1)
-    data = rollout.select("observation", "action", ("next", "observation"), ("next", "done"),
-                          ("next", "terminated"), ("next", "truncated")).clone()
+    data = rollout.select(
+        "observation",
+        "action",
+        ("next", "observation"),
+        ("next", "done"),
+        ("next", "terminated"),
+        ("next", "truncated"),
+    ).clone()
     data["next", "reward"] = dense
     if absorbing_state:
-        data["observation"], data["next", "observation"] = data["observation"][..., :-1], data["next", "observation"][..., :-1]
+        data["observation"], data["next", "observation"] = (
+            data["observation"][..., :-1],
+            data["next", "observation"][..., :-1],
+        )
     return data
 
 
@@ -103,13 +117,20 @@ def check_args(args) -> None:
         from torchrl_sail.data.minari import minari_datasets_root
 
         if (minari_datasets_root() / args.export).exists() and not args.overwrite:
-            raise FileExistsError(f"export={args.export}: a Minari dataset of that id exists under "
-                                  f"{minari_datasets_root()}; pass overwrite=true or another id")
+            raise FileExistsError(
+                f"export={args.export}: a Minari dataset of that id exists under "
+                f"{minari_datasets_root()}; pass overwrite=true or another id"
+            )
 
 
 def stats(values: list[float]) -> dict:
-    return {"mean": statistics.fmean(values), "std": statistics.pstdev(values), "min": min(values),
-            "max": max(values), "values": values}
+    return {
+        "mean": statistics.fmean(values),
+        "std": statistics.pstdev(values),
+        "min": min(values),
+        "max": max(values),
+        "values": values,
+    }
 
 
 @hydra.main(version_base="1.3", config_path="../conf", config_name="evaluate")
@@ -124,42 +145,67 @@ def main(args):  # noqa: F821
     check_args(args)
     seed_everything(seed)
     env = make_env(cfg, seed)
-    actor = load_actor(cfg, env, run_dir / "checkpoint")
+    actor = load_actor(cfg, env, checkpoint_dir(run_dir))
     episodes = evaluate_episodes(env, actor, args.episodes, cfg.env.max_episode_steps, keep_rollouts=bool(args.export))
 
-    result = {"run_dir": str(run_dir), "env": cfg.env.name, "algo": cfg.algo.name, "run_seed": cfg.seed,
-              "checkpoint_frames": run["frames"], "seed": seed, "episodes": args.episodes,
-              **{key: stats([e[key] for e in episodes]) for key in ("dense_return", "delayed_reward", "length")}}
+    result = {
+        "run_dir": str(run_dir),
+        "env": cfg.env.name,
+        "algo": cfg.algo.name,
+        "run_seed": cfg.seed,
+        "checkpoint_frames": run["frames"],
+        "seed": seed,
+        "episodes": args.episodes,
+        **{key: stats([e[key] for e in episodes]) for key in ("dense_return", "delayed_reward", "length")},
+    }
     if args.video:
         render_env = make_render_env(cfg, seed, args.video_size)  # same seed: replays episode 0
         copy_observation_norm(env, render_env)  # a PPO actor's frozen statistics (others: nothing)
         frames, rollout = record_episode(render_env, actor, cfg.env.max_episode_steps)
         video = write_video(frames, out.with_suffix(f".{args.video_format}"), video_fps(render_env))
-        result["video"] = {"path": str(video), "frames": len(frames), "fps": video_fps(render_env),
-                           "dense_return": float(rollout["next", "episode_return"][-1])}
+        result["video"] = {
+            "path": str(video),
+            "frames": len(frames),
+            "fps": video_fps(render_env),
+            "dense_return": float(rollout["next", "episode_return"][-1]),
+        }
     if args.export:
         from torchrl_sail import export_minari_dataset
 
         data = torch.cat([episode_transitions(e["rollout"], cfg.algo.absorbing_state) for e in episodes])
         dataset = export_minari_dataset(
-            data, args.export, env=cfg.env.name, overwrite=args.overwrite, max_episode_steps=cfg.env.max_episode_steps,
+            data,
+            args.export,
+            env=cfg.env.name,
+            overwrite=args.overwrite,
+            max_episode_steps=cfg.env.max_episode_steps,
             algorithm_name=f"torchrl_sail {cfg.algo.name}, deterministic actor at {run['frames']} frames",
-            description=f"{args.episodes} deterministic episodes (seed {seed}) of {run_dir}")
+            description=f"{args.episodes} deterministic episodes (seed {seed}) of {run_dir}",
+        )
         result["export"] = {"dataset_id": args.export, "path": str(dataset)}
     write_atomic(out, json.dumps(result, indent=2))
 
-    print(f"{cfg.algo.name} on {cfg.env.name} (seed {cfg.seed}), checkpoint at {run['frames']} frames, "
-          f"{args.episodes} deterministic episodes (seed {seed}):")
-    for key, label in (("dense_return", "dense return"), ("delayed_reward", "delayed reward r_e"),
-                       ("length", "episode length")):
+    print(
+        f"{cfg.algo.name} on {cfg.env.name} (seed {cfg.seed}), checkpoint at {run['frames']} frames, "
+        f"{args.episodes} deterministic episodes (seed {seed}):"
+    )
+    for key, label in (
+        ("dense_return", "dense return"),
+        ("delayed_reward", "delayed reward r_e"),
+        ("length", "episode length"),
+    ):
         s = result[key]
         print(f"  {label:<19} mean {s['mean']:9.1f}  std {s['std']:8.1f}  min {s['min']:9.1f}  max {s['max']:9.1f}")
     if args.video:
-        print(f"  video: {result['video']['path']} ({result['video']['frames']} frames at {result['video']['fps']} fps, "
-              f"dense return {result['video']['dense_return']:.1f})")
+        print(
+            f"  video: {result['video']['path']} ({result['video']['frames']} frames at {result['video']['fps']} fps, "
+            f"dense return {result['video']['dense_return']:.1f})"
+        )
     if args.export:
-        print(f"  Minari dataset {args.export}: {result['export']['path']} "
-              f"(train on it: teacher.path=minari:{args.export})")
+        print(
+            f"  Minari dataset {args.export}: {result['export']['path']} "
+            f"(train on it: teacher.path=minari:{args.export})"
+        )
     print(f"  written to {out}")
 
 

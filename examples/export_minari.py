@@ -2,13 +2,14 @@
 
     python examples/export_minari.py --env Hopper-v4 --dataset-id sail/Hopper-v4/teacher-v0
     python examples/export_minari.py --env Hopper-v4 --dataset-id sail/Hopper-v4/paper-v0 \\
-        --source ../shared/data/teachers/expert_data_no_img_Hopper_scores_1500_episodes_10.npz
+        --source <teachers>/expert_data_no_img_Hopper_scores_1500_episodes_10.npz
 
 The source is anything ``load_demonstrations`` reads (a ``.npz`` file, a demonstrations folder,
 ``minari:<id>``); by default the teacher shipped for ``--env``. The dataset goes under ``--root``,
 by default ``MINARI_DATASETS_PATH`` (else ``~/.minari/datasets``); SAIL trains on it with
 ``teacher.path=minari:<dataset id>``. Needs ``pip install -e '.[minari]'``.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -38,8 +39,14 @@ def main(argv: list[str] | None = None) -> None:
 
     demos = load_demonstrations(source, max_episode_steps=args.max_episode_steps)
     path = export_minari_dataset(
-        demos, args.dataset_id, env=args.env, root=args.root, algorithm_name=args.algorithm_name,
-        author=args.author, description=args.description, overwrite=args.overwrite,
+        demos,
+        args.dataset_id,
+        env=args.env,
+        root=args.root,
+        algorithm_name=args.algorithm_name,
+        author=args.author,
+        description=args.description,
+        overwrite=args.overwrite,
     )
     # read back what was written
     _, meta = load_minari_demonstrations(path, max_episode_steps=args.max_episode_steps)
@@ -47,8 +54,10 @@ def main(argv: list[str] | None = None) -> None:
     shown = ", ".join(f"{r:.1f}" for r in returns[:10]) + (", ..." if len(returns) > 10 else "")
     print(f"wrote {path}")
     n = meta["n_episodes"]
-    print(f"  {n} episode{'s' * (n != 1)}, {meta['n_transitions']} transitions, env {meta.get('env_id')}, "
-          f"time feature {meta['time_feature']}")
+    print(
+        f"  {n} episode{'s' * (n != 1)}, {meta['n_transitions']} transitions, env {meta.get('env_id')}, "
+        f"time feature {meta['time_feature']}"
+    )
     print(f"  returns [{shown}] (mean {sum(returns) / len(returns):.1f})")
     env = f"env={meta['env_id']} " if meta.get("env_id") else ""
     print(f"train on it: python examples/sail_td3.py {env}teacher.path=minari:{args.dataset_id}")

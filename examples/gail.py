@@ -1,4 +1,11 @@
-"""The on-policy baselines of ``sail_td3.py``: GAIL (``algo=gail``) and POfD (``algo=pofd``), PPO generators.
+"""The on-policy baselines: GAIL (``algo=gail``) and POfD (``algo=pofd``), PPO generators learning
+from the delayed reward and one teacher demonstration, in TorchRL.
+
+    python examples/gail.py algo=gail env=Hopper-v4 teacher.path=<teacher.npz|dataset folder>
+    python examples/gail.py algo=pofd env=Hopper-v4 teacher.path=...
+
+The same config (``conf/config.yaml``), overrides and run folder as ``sail_td3.py``, which runs
+the off-policy methods; ``algo=`` must name an on-policy method (``algo.learner=ppo``).
 
 Per collected batch, as TorchRL's sota GAIL script does: the discriminator takes one pass over
 the batch against teacher rows (SAIL's ``Discriminator`` and ``DiscriminatorLoss``), the batch
@@ -20,72 +27,52 @@ PPO updates, L2 critic loss weighted 0.25, Adam eps 1e-5, no gradient clipping. 
 normaliser statistics are saved in the checkpoint (restored on resume) and copied, frozen, into
 the evaluation and video envs. The run folder holds the same files as the other methods'.
 """
+
 from __future__ import annotations
 
-import copy
+from mujoco_gl import check_mujoco_gl
+
+check_mujoco_gl()  # before TorchRL imports MuJoCo, which loads the MUJOCO_GL backend on import
+
 import math
 import time
 from pathlib import Path
 
+import hydra
 import torch
 import tqdm
-from tensordict.nn import AddStateIndependentNormalScale, TensorDictModule
-from torch import nn
+from config_schema import check_config, check_script, register_config_schema
+from hydra.core.hydra_config import HydraConfig
+from run_utils import (
+    crossings,
+    log_metrics,
+    logger_states,
+    make_loggers,
+    make_run,
+    record_evaluation,
+    seed_everything,
+    write_run_summary,
+)
 from torchrl.checkpoint import Checkpoint, GlobalRNGState
 from torchrl.collectors import Collector
 from torchrl.data import LazyTensorStorage, SamplerWithoutReplacement, TensorDictReplayBuffer
-from torchrl.envs import ExplorationType
-from torchrl.modules import MLP, ProbabilisticActor, TanhNormal, ValueOperator
 from torchrl.objectives import ClipPPOLoss, group_optimizers
 from torchrl.objectives.value import GAE
-
-from torchrl_sail import DiscriminatorLoss, DivergenceCheck, MixedReplayBuffer, observation_normalizer, \
-    TRANSITION_KEYS
-from utils import crossings, log_metrics, logger_states, make_discriminator, make_env, make_loggers, \
-    make_replay, make_reward, make_teacher, new_run, normalized_observation_key, record_evaluation, \
-    start_or_resume, train_timing, write_summary
+from utils import (
+    copy_observation_norm,
+    make_discriminator,
+    make_env,
+    make_ppo_models,
+    make_replay,
+    make_reward,
+    make_teacher,
+)
 from video import log_video, make_render_env
 
+from torchrl_sail import TRANSITION_KEYS, DiscriminatorLoss, DivergenceCheck, MixedReplayBuffer, observation_normalizer
+from torchrl_sail.runs import checkpoint_dir, last_checkpoint, resume_mode, start_or_resume, train_timing
 
-def make_ppo_models(cfg, env):
-    """TorchRL's sota PPO/GAIL networks for MuJoCo: tanh MLPs, a state-independent scale, TanhNormal.
-
-    Both read the normalised observations when the run normalises them (``algo.ppo.normalize_observations``).
-    """
-    key = normalized_observation_key(cfg) or "observation"
-    obs_dim, spec = env.observation_spec[key].shape[-1], env.action_spec
-    policy = nn.Sequential(
-        MLP(in_features=obs_dim, out_features=spec.shape[-1], num_cells=list(cfg.algo.ppo.cells),
-            activation_class=nn.Tanh, device=cfg.device),
-        AddStateIndependentNormalScale(spec.shape[-1], scale_lb=1e-8, device=cfg.device),
-    )
-    value = MLP(in_features=obs_dim, out_features=1, num_cells=list(cfg.algo.ppo.cells), activation_class=nn.Tanh,
-                device=cfg.device)
-    for net, gain in ((policy[0], 1.0), (value, 0.01)):
-        for layer in net.modules():
-            if isinstance(layer, nn.Linear):
-                nn.init.orthogonal_(layer.weight, gain)
-                layer.bias.data.zero_()
-    actor = ProbabilisticActor(
-        TensorDictModule(policy, in_keys=[key], out_keys=["loc", "scale"]),
-        in_keys=["loc", "scale"], spec=spec, distribution_class=TanhNormal,
-        distribution_kwargs={"low": spec.space.low, "high": spec.space.high, "tanh_loc": False},
-        return_log_prob=True, default_interaction_type=ExplorationType.RANDOM,
-    )
-    return actor, ValueOperator(value, in_keys=[key])
-
-
-def copy_observation_norm(source_env, target_env) -> None:
-    """Gives ``target_env``'s observation normaliser the statistics of ``source_env``'s, frozen.
-
-    Evaluation and video envs run the training statistics without updating them (a copy: the
-    training env's own are never touched by an evaluation). Envs without a normaliser: nothing.
-    """
-    source, target = observation_normalizer(source_env), observation_normalizer(target_env)
-    if target is None:
-        return
-    target.load_state_dict(copy.deepcopy(source.state_dict()))
-    target.freeze()
+register_config_schema()  # the typed schema conf/config.yaml extends: Hydra checks every value against it
 
 
 def pofd_lambda(coef: float, decay: float, iteration: int) -> float:
@@ -93,7 +80,7 @@ def pofd_lambda(coef: float, decay: float, iteration: int) -> float:
 
     A function of the batch index alone, which the frame count gives: a resumed run continues the schedule.
     """
-    return coef * decay ** iteration
+    return coef * decay**iteration
 
 
 def lr_factor(updates_done: int, total_updates: int) -> float:
@@ -101,58 +88,93 @@ def lr_factor(updates_done: int, total_updates: int) -> float:
     return max(0.0, 1.0 - updates_done / total_updates)
 
 
-def run_gail(cfg, run_dir: Path, resuming: bool) -> None:
+@hydra.main(version_base="1.3", config_path="../conf", config_name="config")
+def main(cfg):  # noqa: F821
+    check_script(cfg, "gail.py")  # the off-policy methods: sail_td3.py; algo=bc: bc.py
+    check_config(cfg)
+    if cfg.threads:
+        torch.set_num_threads(cfg.threads)
+    run_dir = Path(HydraConfig.get().runtime.output_dir)
+    resuming = resume_mode(run_dir, cfg.resume, cfg.collector.total_frames)
+    if resuming is None:  # resume=auto on a finished run (e.g. a rerun matrix)
+        print(f"{run_dir} holds a finished run: skipped (resume=auto).")
+        return
+    seed_everything(cfg.seed)
+
     p, d, r = cfg.algo.ppo, cfg.optim.discriminator, cfg.algo.reward
     env, eval_env = make_env(cfg, cfg.seed), make_env(cfg, cfg.seed + 10_000)
     teacher, teacher_return, teacher_source = make_teacher(cfg, env)
     actor, critic = make_ppo_models(cfg, env)
     discriminator = make_discriminator(cfg, env)
     advantage = GAE(gamma=cfg.optim.gamma, lmbda=p.gae_lambda, value_network=critic, average_gae=False)
-    ppo_loss = ClipPPOLoss(actor, critic, clip_epsilon=p.clip_epsilon, entropy_coeff=p.entropy_coef,
-                           critic_coeff=p.critic_coef, loss_critic_type=str(p.loss_critic_type),
-                           normalize_advantage=True)
+    ppo_loss = ClipPPOLoss(
+        actor,
+        critic,
+        clip_epsilon=p.clip_epsilon,
+        entropy_coeff=p.entropy_coef,
+        critic_coeff=p.critic_coef,
+        loss_critic_type=str(p.loss_critic_type),
+        normalize_advantage=True,
+    )
     d_loss = DiscriminatorLoss(discriminator, entropy_coef=d.entropy_coef, gp_coef=d.gp_coef)
-    optimizers = {"ppo": group_optimizers(torch.optim.Adam(actor.parameters(), lr=p.lr, eps=1e-5),
-                                          torch.optim.Adam(critic.parameters(), lr=p.lr, eps=1e-5)),
-                  "discriminator": torch.optim.Adam(discriminator.parameters(), lr=d.lr)}
+    optimizers = {
+        "ppo": group_optimizers(
+            torch.optim.Adam(actor.parameters(), lr=p.lr, eps=1e-5),
+            torch.optim.Adam(critic.parameters(), lr=p.lr, eps=1e-5),
+        ),
+        "discriminator": torch.optim.Adam(discriminator.parameters(), lr=d.lr),
+    }
     # gail: -log(1 - D) replaces the env reward; pofd: added to it, times lambda_1 (its coef)
     reward = make_reward(cfg, discriminator)
     shaped = r.source == "shaped"
     on_policy = make_replay(p.frames_per_batch, cfg.device)  # this batch's transitions, for D
     d_batches = MixedReplayBuffer(teacher, on_policy)
-    minibatches = TensorDictReplayBuffer(storage=LazyTensorStorage(p.frames_per_batch, device=cfg.device),
-                                         sampler=SamplerWithoutReplacement(), batch_size=p.minibatch_size)
+    minibatches = TensorDictReplayBuffer(
+        storage=LazyTensorStorage(p.frames_per_batch, device=cfg.device),
+        sampler=SamplerWithoutReplacement(),
+        batch_size=p.minibatch_size,
+    )
     # TorchRL anneals over every PPO update of the budget: batches x epochs x minibatches per epoch
-    total_updates = (cfg.collector.total_frames // p.frames_per_batch) * p.epochs * math.ceil(
-        p.frames_per_batch / p.minibatch_size)
+    total_updates = (
+        (cfg.collector.total_frames // p.frames_per_batch) * p.epochs * math.ceil(p.frames_per_batch / p.minibatch_size)
+    )
     observation_norm = observation_normalizer(env)  # None with algo.ppo.normalize_observations=false
 
-    run = new_run(cfg)
-    stateful = {"actor": actor, "critic": critic, "discriminator": discriminator, "rng": GlobalRNGState(),
-                "run": run, **{f"optim_{name}": optimizer for name, optimizer in optimizers.items()}}
+    run = make_run(cfg)
+    stateful = {
+        "actor": actor,
+        "critic": critic,
+        "discriminator": discriminator,
+        "rng": GlobalRNGState(),
+        "run": run,
+        **{f"optim_{name}": optimizer for name, optimizer in optimizers.items()},
+    }
     if observation_norm is not None:  # the policy's input statistics: a resumed run goes on with them
         stateful["observation_norm"] = observation_norm
     checkpoint = Checkpoint(**stateful)
-    start_or_resume(checkpoint, run_dir, cfg, run, resuming, optimizers=optimizers.values())
+    start_or_resume(checkpoint, run_dir, run, resuming, optimizers=optimizers.values(), config=cfg)
     if resuming:
         env.set_seed(cfg.seed + run["frames"])  # a different episode stream than the one before the stop
     loggers = make_loggers(cfg, run_dir, run["loggers"])
     divergence = DivergenceCheck({"actor": actor, "critic": critic, "discriminator": discriminator})
-    checkpoint_path = run_dir / "checkpoint"
 
     def check(metrics: dict, frames: int) -> None:
-        saved = (checkpoint_path / "manifest.json").exists()
-        divergence(metrics, frame=frames, checkpoint=f"{checkpoint_path}, frame {run['frames']}" if saved else None)
+        divergence(metrics, frame=frames, checkpoint=last_checkpoint(run_dir, run))
 
     def save(frames: int) -> None:
         check(metrics, frames)
         run.update(frames=frames, loggers=logger_states(loggers))
-        checkpoint.save(checkpoint_path)
+        checkpoint.save(checkpoint_dir(run_dir))
 
     render_env = make_render_env(cfg, cfg.seed + 30_000, cfg.eval.video_size) if cfg.eval.video_every_frames else None
     frames, metrics = run["frames"], {}
-    collector = Collector(env, actor, frames_per_batch=p.frames_per_batch, track_traj_ids=False,
-                          total_frames=max(cfg.collector.total_frames - frames, 0))
+    collector = Collector(
+        env,
+        actor,
+        frames_per_batch=p.frames_per_batch,
+        track_traj_ids=False,
+        total_frames=max(cfg.collector.total_frames - frames, 0),
+    )
     pbar = tqdm.tqdm(total=cfg.collector.total_frames, initial=frames, unit="frames")
     start, start_frames, clock = time.time(), frames, (time.time(), frames)
     for data in collector if collector.total_frames else ():
@@ -167,8 +189,9 @@ def run_gail(cfg, run_dir: Path, resuming: bool) -> None:
         # raw observations (not the policy's normalised ones): D compares them with the teacher's
         on_policy.extend(data.reshape(-1).select(*TRANSITION_KEYS))
         # D: one pass over the batch's rows, each step against as many teacher rows
-        for batch in d_batches.sample(2 * d.batch_size, teacher_fraction=0.5,
-                                      num_batches=max(1, data.numel() // d.batch_size)).unbind(0):
+        for batch in d_batches.sample(
+            2 * d.batch_size, teacher_fraction=0.5, num_batches=max(1, data.numel() // d.batch_size)
+        ).unbind(0):
             out = d_loss(batch)
             sum(value for key, value in out.items() if key.startswith("loss_")).backward()
             optimizers["discriminator"].step()
@@ -214,10 +237,22 @@ def run_gail(cfg, run_dir: Path, resuming: bool) -> None:
     end = time.time()
     save(frames)
     evals = [value for _, value in run["evals"]]
-    write_summary(
-        run_dir, cfg, teacher_return=teacher_return, alpha_switch_frame=None, teacher_source=teacher_source,
-        frames=frames, gradient_steps=run["gradient_steps"], final_eval_return=evals[-1] if evals else None,
-        best_eval_return=max(evals) if evals else None, passed_teacher_at_frame=run["passed_teacher_at"],
-        num_promoted=0, frames_per_second=(frames - start_frames) / max(end - start, 1e-9),
+    write_run_summary(
+        run_dir,
+        cfg,
+        teacher_return=teacher_return,
+        alpha_switch_frame=None,
+        teacher_source=teacher_source,
+        frames=frames,
+        gradient_steps=run["gradient_steps"],
+        final_eval_return=evals[-1] if evals else None,
+        best_eval_return=max(evals) if evals else None,
+        passed_teacher_at_frame=run["passed_teacher_at"],
+        num_promoted=0,
+        frames_per_second=(frames - start_frames) / max(end - start, 1e-9),
         **train_timing(clock, end=end, frames=frames),
     )
+
+
+if __name__ == "__main__":
+    main()

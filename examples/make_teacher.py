@@ -7,6 +7,7 @@ The demonstration is recorded with the same observation layout SAIL uses (time f
 and stored in the project's format (``save_demonstrations``), dense rewards included: SAIL
 turns them into the delayed reward when it loads the file.
 """
+
 from __future__ import annotations
 
 import time
@@ -14,17 +15,26 @@ import time
 import hydra
 import torch
 import tqdm
+from config_schema import register_config_schema
+from run_utils import seed_everything
 from torchrl.collectors import Collector
 from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.objectives import SoftUpdate, TD3Loss
+from utils import env_kwargs, make_agent, make_replay
 
-from torchrl_sail import make_sail_env, save_demonstrations, TRANSITION_KEYS
-from utils import make_agent, make_replay, seed_everything
+from torchrl_sail import TRANSITION_KEYS, make_sail_env, save_demonstrations
+
+register_config_schema()  # the typed schema conf/make_teacher.yaml extends (MakeTeacherConfig)
 
 
 def make_env(cfg, seed):
-    env = make_sail_env(cfg.env.name, max_episode_steps=cfg.env.max_episode_steps,
-                        delayed_reward=False, device=cfg.device)
+    env = make_sail_env(
+        cfg.env.name,
+        max_episode_steps=cfg.env.max_episode_steps,
+        delayed_reward=False,
+        device=cfg.device,
+        env_kwargs=env_kwargs(cfg),
+    )
     env.set_seed(seed)
     return env
 
@@ -50,8 +60,13 @@ def main(cfg):  # noqa: F821
     critic_optim = torch.optim.Adam(loss.qvalue_network_params.flatten_keys().values(), lr=cfg.lr)
     actor_optim = torch.optim.Adam(loss.actor_network_params.flatten_keys().values(), lr=cfg.lr)
     replay = make_replay(cfg.frames, cfg.device)
-    collector = Collector(env, exploration_policy, frames_per_batch=cfg.frames_per_batch,
-                          total_frames=cfg.frames, init_random_frames=cfg.init_random_frames)
+    collector = Collector(
+        env,
+        exploration_policy,
+        frames_per_batch=cfg.frames_per_batch,
+        total_frames=cfg.frames,
+        init_random_frames=cfg.init_random_frames,
+    )
 
     best = None  # (return, rollout, frames) of the best recordable deterministic episode
     frames, updates, start = 0, 0, time.time()

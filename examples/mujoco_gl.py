@@ -1,4 +1,5 @@
 """MuJoCo's GL backend (``MUJOCO_GL``): checked before TorchRL imports MuJoCo, which reads the variable."""
+
 from __future__ import annotations
 
 import importlib
@@ -19,5 +20,6 @@ def check_mujoco_gl() -> None:
     try:
         importlib.import_module("mujoco")
     except Exception as err:  # PyOpenGL fails with AttributeError, ImportError, ...
-        raise RuntimeError(f"MuJoCo cannot load MUJOCO_GL={os.environ['MUJOCO_GL']!r} "
-                           f"({type(err).__name__}: {err}). {GL_HELP}") from err
+        raise RuntimeError(
+            f"MuJoCo cannot load MUJOCO_GL={os.environ['MUJOCO_GL']!r} ({type(err).__name__}: {err}). {GL_HELP}"
+        ) from err

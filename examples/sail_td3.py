@@ -2,8 +2,13 @@
 reward + an adaptive top-K teacher buffer, learning from one delayed reward per episode.
 
     python examples/sail_td3.py env=Walker2d-v4
-    python examples/sail_td3.py env=Hopper-v4 teacher.path=../shared/data/teachers/expert_data_no_img_Hopper_scores_1500_episodes_1.npz
+    python examples/sail_td3.py env=Hopper-v4 teacher.path=<teachers>/<the paper's Hopper file>.npz
     python examples/sail_td3.py -m seed=0,1,2            # Hydra multirun
+    python examples/sail_td3.py algo=dac                 # every off-policy method (algo.learner=td3 or sac)
+
+This script runs the off-policy methods: SAIL and its ablations, dac, dac_published,
+td3_delayed, ddpgfd, pofd_td3 (``conf/algo/``). The on-policy ones (gail, pofd) are
+``examples/gail.py``, behaviour cloning is ``examples/bc.py``: same config, same run folder.
 
 The default cadence is the authors' code: 10k random warm-up frames, then every 1000
 frames 1000 TD3 steps on batches of 256 rows and every 500 frames 10 discriminator steps
@@ -14,6 +19,7 @@ Each run writes to its folder (``hydra.run.dir``): the resolved config, TorchRL 
 outputs (``logs/``), ``learning_curve.png``, ``summary.json`` and ``checkpoint/``
 (``resume=true`` continues from it).
 """
+
 from __future__ import annotations
 
 from mujoco_gl import check_mujoco_gl
@@ -26,27 +32,27 @@ from pathlib import Path
 import hydra
 import torch
 import tqdm
+from config_schema import check_config, check_script, register_config_schema
 from hydra.core.hydra_config import HydraConfig
-from torchrl._utils import timeit
-from torchrl.checkpoint import Checkpoint, GlobalRNGState
-
-from bc import run_bc
-from config_schema import register_config_schema
-from gail import run_gail
-from torchrl_sail import DivergenceCheck, MixedReplayBuffer, TRANSITION_KEYS
-from utils import (
+from run_utils import (
     actor_lr,
-    check_config,
     crossings,
-    FilledRows,
     log_metrics,
     logger_states,
+    make_loggers,
+    make_run,
+    record_evaluation,
+    seed_everything,
+    write_run_summary,
+)
+from torchrl.checkpoint import Checkpoint, GlobalRNGState
+from utils import (
+    FilledRows,
     make_absorbing,
     make_agent,
     make_collector,
     make_discriminator,
     make_env,
-    make_loggers,
     make_losses,
     make_nstep,
     make_optimizers,
@@ -55,36 +61,29 @@ from utils import (
     make_rnd,
     make_teacher,
     make_update,
-    new_run,
-    record_evaluation,
-    resume_mode,
-    start_or_resume,
-    seed_everything,
     stored_keys,
-    train_timing,
-    write_summary,
 )
 from video import log_video, make_render_env
+
+from torchrl_sail import TRANSITION_KEYS, DivergenceCheck, MixedReplayBuffer
+from torchrl_sail._compat import timeit
+from torchrl_sail.runs import checkpoint_dir, last_checkpoint, resume_mode, start_or_resume, train_timing
 
 register_config_schema()  # the typed schema conf/config.yaml extends: Hydra checks every value against it
 
 
 @hydra.main(version_base="1.3", config_path="../conf", config_name="config")
 def main(cfg):  # noqa: F821
+    check_script(cfg, "sail_td3.py")  # algo=gail, pofd: gail.py; algo=bc: bc.py
     check_config(cfg)
     if cfg.threads:
         torch.set_num_threads(cfg.threads)
     run_dir = Path(HydraConfig.get().runtime.output_dir)
-    checkpoint_path = run_dir / "checkpoint"
-    resuming = resume_mode(cfg, run_dir)
+    resuming = resume_mode(run_dir, cfg.resume, cfg.collector.total_frames)
     if resuming is None:  # resume=auto on a finished run (e.g. a rerun matrix)
         print(f"{run_dir} holds a finished run: skipped (resume=auto).")
         return
     seed_everything(cfg.seed)
-    if cfg.algo.learner == "bc":  # offline: no env frames, no TD3
-        return run_bc(cfg, run_dir, resuming)
-    if cfg.algo.learner == "ppo":  # GAIL, POfD: on-policy
-        return run_gail(cfg, run_dir, resuming)
 
     # --- env, teacher, buffers (everything is validated before training starts)
     env, eval_env = make_env(cfg, cfg.seed), make_env(cfg, cfg.seed + 10_000)
@@ -98,7 +97,9 @@ def main(cfg):  # noqa: F821
     # DDPGfD: each agent transition is stored with its n-step view (None for the other methods)
     nstep = make_nstep(cfg)
     # SAIL-OnPolicy trains D against the most recent transitions only.
-    recent = make_replay(cfg.algo.recent_window, cfg.device) if cfg.algo.discriminator_agent_data == "recent" else replay
+    recent = (
+        make_replay(cfg.algo.recent_window, cfg.device) if cfg.algo.discriminator_agent_data == "recent" else replay
+    )
 
     # --- networks, losses, optimizers, batches
     actor, critic, exploration_policy = make_agent(cfg, env)
@@ -113,16 +114,23 @@ def main(cfg):  # noqa: F821
     d_batches = MixedReplayBuffer(teacher, recent)
 
     # --- everything a stopped run needs to continue, saved and restored as one
-    run = new_run(cfg)
-    stateful = {"loss": loss, "discriminator": discriminator, "replay": FilledRows(replay), "teacher": teacher,
-                "alpha": alpha_scheduler, "rng": GlobalRNGState(), "run": run,
-                **{f"optim_{name}": optimizer for name, optimizer in optimizers.items()}}
+    run = make_run(cfg)
+    stateful = {
+        "loss": loss,
+        "discriminator": discriminator,
+        "replay": FilledRows(replay),
+        "teacher": teacher,
+        "alpha": alpha_scheduler,
+        "rng": GlobalRNGState(),
+        "run": run,
+        **{f"optim_{name}": optimizer for name, optimizer in optimizers.items()},
+    }
     if recent is not replay:
         stateful["recent"] = FilledRows(recent)
     if rnd is not None:
         stateful["rnd"] = rnd
     checkpoint = Checkpoint(**stateful)
-    start_or_resume(checkpoint, run_dir, cfg, run, resuming, optimizers=optimizers.values())
+    start_or_resume(checkpoint, run_dir, run, resuming, optimizers=optimizers.values(), config=cfg)
     if resuming:
         # The env restarts on a fresh episode: a trajectory cut by the stop is not offered.
         teacher.writer.clear_unfinished()
@@ -135,8 +143,9 @@ def main(cfg):  # noqa: F821
     render_env = make_render_env(cfg, cfg.seed + 30_000, cfg.eval.video_size) if cfg.eval.video_every_frames else None
 
     update = make_update(cfg, loss, optimizers, target_updater)
-    reduced_precision = torch.autocast(torch.device(cfg.device).type, dtype=torch.bfloat16,
-                                       enabled=cfg.optim.precision == "bf16")
+    reduced_precision = torch.autocast(
+        torch.device(cfg.device).type, dtype=torch.bfloat16, enabled=cfg.optim.precision == "bf16"
+    )
 
     def discriminator_update(batch) -> dict:
         out = d_loss(batch)
@@ -153,13 +162,10 @@ def main(cfg):  # noqa: F821
         optimizers["rnd"].zero_grad(set_to_none=True)
         return {"rnd/loss_predictor": out["loss_predictor"].detach()}
 
-    def last_checkpoint() -> str | None:
-        return f"{checkpoint_path}, frame {run['frames']}" if (checkpoint_path / "manifest.json").exists() else None
-
     def save(frames: int, gradient_steps: int) -> None:
-        divergence(metrics, frame=frames, checkpoint=last_checkpoint())
+        divergence(metrics, frame=frames, checkpoint=last_checkpoint(run_dir, run))
         run.update(frames=frames, gradient_steps=gradient_steps, loggers=logger_states(loggers))
-        checkpoint.save(checkpoint_path)
+        checkpoint.save(checkpoint_dir(run_dir))
 
     o, d, warmup = cfg.optim, cfg.optim.discriminator, cfg.collector.init_random_frames
     frames, gradient_steps = run["frames"], run["gradient_steps"]
@@ -217,13 +223,20 @@ def main(cfg):  # noqa: F821
             if num_updates:
                 with timeit("sample"), reduced_precision:  # the D reward too, with precision=bf16
                     block = sail_batches.sample(o.batch_size, teacher_fraction=alpha, num_batches=num_updates)
-                metrics["sail/d_reward_mean" if uses_discriminator else "sail/env_reward_mean"] = block["next", "reward"].mean()
+                metrics["sail/d_reward_mean" if uses_discriminator else "sail/env_reward_mean"] = block[
+                    "next", "reward"
+                ].mean()
                 last = {}
                 for batch in block.unbind(0):
                     gradient_steps += 1
                     with timeit("update"):
-                        last.update(update(batch, update_actor=gradient_steps % o.policy_delay == 0
-                                           and gradient_steps >= o.actor_updates_after))
+                        last.update(
+                            update(
+                                batch,
+                                update_actor=gradient_steps % o.policy_delay == 0
+                                and gradient_steps >= o.actor_updates_after,
+                            )
+                        )
                 metrics.update({f"sail/{key}": value for key, value in last.items()})
             num_d_steps = crossings(d.every_frames, warmup, before, frames) * d.steps if uses_discriminator else 0
             if num_d_steps:
@@ -236,10 +249,11 @@ def main(cfg):  # noqa: F821
                             metrics.update(rnd_update(batch))
             # NaN/inf stops the run here, at the logging cadence (and before any checkpoint), before
             # the weights reach the workers, an evaluation or a log.
-            log_now = (frames - last_log >= cfg.logger.log_every_frames
-                       or crossings(cfg.eval.every_frames, 0, before, frames))
+            log_now = frames - last_log >= cfg.logger.log_every_frames or crossings(
+                cfg.eval.every_frames, 0, before, frames
+            )
             if log_now or crossings(cfg.checkpoint.every_frames, 0, before, frames):
-                divergence(metrics, frame=frames, checkpoint=last_checkpoint())
+                divergence(metrics, frame=frames, checkpoint=last_checkpoint(run_dir, run))
             # Worker processes or Ray actors act with a copy of the policy.
             collector.update_policy_weights_()
 
@@ -250,20 +264,30 @@ def main(cfg):  # noqa: F821
                     log_video(loggers, render_env, actor, cfg, run_dir, frames)
             with timeit("log"):
                 fps = (frames - start_frames) / max(time.time() - start, 1e-9)
-                metrics.update({
-                    "teacher/threshold": teacher.writer.threshold, "teacher/num_promoted": teacher.writer.num_promoted,
-                    "teacher/num_trajectories": teacher.writer.num_trajectories, "teacher/size": len(teacher),
-                    "replay/size": len(replay), "alpha": alpha, "time/fps": fps,
-                })
+                metrics.update(
+                    {
+                        "teacher/threshold": teacher.writer.threshold,
+                        "teacher/num_promoted": teacher.writer.num_promoted,
+                        "teacher/num_trajectories": teacher.writer.num_trajectories,
+                        "teacher/size": len(teacher),
+                        "replay/size": len(replay),
+                        "alpha": alpha,
+                        "time/fps": fps,
+                    }
+                )
                 if log_now:
                     log_metrics(loggers, {**metrics, **timeit.todict(prefix="time")}, frames)
                     metrics.pop("eval/return", None)
                     metrics.pop("alpha_switch_frame", None)
                     last_log = frames
                 pbar.update(data.numel())
-                pbar.set_postfix(ret=f"{float(metrics.get('train/dense_return', float('nan'))):.0f}",
-                                 eval=f"{run['evals'][-1][1]:.0f}" if run["evals"] else "-",
-                                 C=f"{teacher.writer.threshold:.0f}", alpha=f"{alpha:.2f}", fps=f"{fps:.0f}")
+                pbar.set_postfix(
+                    ret=f"{float(metrics.get('train/dense_return', float('nan'))):.0f}",
+                    eval=f"{run['evals'][-1][1]:.0f}" if run["evals"] else "-",
+                    C=f"{teacher.writer.threshold:.0f}",
+                    alpha=f"{alpha:.2f}",
+                    fps=f"{fps:.0f}",
+                )
             with timeit("checkpoint"):
                 if crossings(cfg.checkpoint.every_frames, 0, before, frames):
                     save(frames, gradient_steps)
@@ -274,11 +298,18 @@ def main(cfg):  # noqa: F821
     save(frames, gradient_steps)
 
     evals = [value for _, value in run["evals"]]
-    write_summary(
-        run_dir, cfg, teacher_return=teacher_return, alpha_switch_frame=alpha_scheduler.switched_at_frame,
-        teacher_source=teacher_source, frames=frames, gradient_steps=gradient_steps,
-        final_eval_return=evals[-1] if evals else None, best_eval_return=max(evals) if evals else None,
-        passed_teacher_at_frame=run["passed_teacher_at"], num_promoted=teacher.writer.num_promoted,
+    write_run_summary(
+        run_dir,
+        cfg,
+        teacher_return=teacher_return,
+        alpha_switch_frame=alpha_scheduler.switched_at_frame,
+        teacher_source=teacher_source,
+        frames=frames,
+        gradient_steps=gradient_steps,
+        final_eval_return=evals[-1] if evals else None,
+        best_eval_return=max(evals) if evals else None,
+        passed_teacher_at_frame=run["passed_teacher_at"],
+        num_promoted=teacher.writer.num_promoted,
         teacher_threshold=teacher.writer.threshold,
         frames_per_second=(frames - start_frames) / max(end - start, 1e-9),
         **train_timing(train_clock, end=end, frames=frames),

@@ -6,6 +6,7 @@ with imageio (MP4 through the ffmpeg binary of ``imageio-ffmpeg``: ``pip install
 TorchRL's own MP4 writer (``CSVLogger(video_format="mp4")``) needs torchcodec and the system's
 FFmpeg libraries, which a pip install does not bring.
 """
+
 from __future__ import annotations
 
 import importlib.util
@@ -14,30 +15,40 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from torchrl.envs import ExplorationType, set_exploration_type
-
 from mujoco_gl import GL_HELP
+from torchrl.envs import ExplorationType, set_exploration_type
+from utils import env_kwargs, normalized_observation_key
+
 from torchrl_sail import make_sail_env
-from utils import normalized_observation_key
+from torchrl_sail._compat import render_fps
+
 
 def make_render_env(cfg, seed: int, size):
     """The run's env (same observation layout as training) that also renders ``"pixels"``.
 
     A PPO run's env normalises observations: give it the training statistics, frozen, before
-    recording (``gail.copy_observation_norm``).
+    recording (``utils.copy_observation_norm``).
 
     Raises:
         RuntimeError: when MuJoCo cannot render here, naming ``MUJOCO_GL`` and the packages to install.
     """
-    env = make_sail_env(cfg.env.name, max_episode_steps=cfg.env.max_episode_steps,
-                        absorbing_state=cfg.algo.absorbing_state, render_size=tuple(size), device=cfg.device,
-                        normalized_observation_key=normalized_observation_key(cfg))
+    env = make_sail_env(
+        cfg.env.name,
+        max_episode_steps=cfg.env.max_episode_steps,
+        absorbing_state=cfg.algo.absorbing_state,
+        render_size=tuple(size),
+        device=cfg.device,
+        normalized_observation_key=normalized_observation_key(cfg),
+        env_kwargs=env_kwargs(cfg),
+    )
     try:
         env.reset()  # renders the first frame: fails here without a usable GL backend
     except Exception as err:  # EGL/OSMesa/GLFW failures surface as many exception types
         env.close()
-        raise RuntimeError(f"Cannot render {cfg.env.name} with MUJOCO_GL={os.environ.get('MUJOCO_GL')!r} "
-                           f"({type(err).__name__}: {err}). {GL_HELP}") from err
+        raise RuntimeError(
+            f"Cannot render {cfg.env.name} with MUJOCO_GL={os.environ.get('MUJOCO_GL')!r} "
+            f"({type(err).__name__}: {err}). {GL_HELP}"
+        ) from err
     env.set_seed(seed)  # after the probe: the first recorded episode is the seed's first
     return env
 
@@ -53,7 +64,7 @@ def record_episode(env, actor, max_steps: int):
 
 def video_fps(env) -> int:
     """Real time: the env's own rendering rate (MuJoCo tasks: 1 / dt, e.g. 125 for Hopper)."""
-    return int(env.base_env._env.metadata.get("render_fps", 30))
+    return render_fps(env, default=30)
 
 
 def write_video(frames: np.ndarray, path: Path, fps: int) -> Path:

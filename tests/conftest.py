@@ -1,4 +1,5 @@
 """Shared pytest fixtures for torchrl_sail."""
+
 from __future__ import annotations
 
 import os
@@ -7,6 +8,8 @@ from pathlib import Path
 import pytest
 import torch
 
+from torchrl_sail.data import missing_paper_teachers, paper_teachers_dir
+
 # One intra-op thread: on the 2-core CI machine, 2 threads contend with the
 # collector/env and are slower, and single-threaded math is reproducible.
 torch.set_num_threads(1)
@@ -14,23 +17,44 @@ torch.set_num_threads(1)
 REPO_ROOT = Path(__file__).resolve().parents[1]
 
 
-def teachers_dir() -> Path:
-    """Where the paper's teacher ``.npz`` files live (``../shared/data/teachers``)."""
-    env = os.environ.get("TORCHRL_SAIL_TEACHERS")
-    return Path(env) if env else REPO_ROOT.parent / "shared" / "data" / "teachers"
-
-
 @pytest.fixture(scope="session")
 def teacher_dir() -> Path:
-    path = teachers_dir()
-    if not path.is_dir():
-        # On CI ../shared is always beside the clone: a missing folder is a failure there.
+    """The folder with the paper's teacher ``.npz`` files: ``paper_teachers_dir()``.
+
+    That is ``$TORCHRL_SAIL_TEACHERS`` if set, else the user cache that
+    ``python -m torchrl_sail.data.download`` fills. Every pinned file must be there with its
+    SHA-256; otherwise the tests that need them skip, saying why (on CI, where the variable
+    points at the files, they fail instead).
+    """
+    path = paper_teachers_dir()
+    missing = missing_paper_teachers(path)
+    if missing:
+        absent = missing_paper_teachers(path, verify=False)
+        corrupt = [name for name in missing if name not in absent]
+        problems = [f"{len(absent)} missing, e.g. {absent[0]}"] if absent else []
+        problems += [f"{len(corrupt)} with another SHA-256, e.g. {corrupt[0]}"] if corrupt else []
+        reason = (
+            f"the paper's teacher files are not in {path} ({'; '.join(problems)}): get them with "
+            f"`python -m torchrl_sail.data.download` or set TORCHRL_SAIL_TEACHERS to a folder that has them"
+        )
         if os.environ.get("CI"):
-            pytest.fail(f"teacher demonstrations not found at {path}")
-        pytest.skip(f"teacher demonstrations not found at {path}")
+            pytest.fail(reason)
+        pytest.skip(reason)
     return path
 
 
 @pytest.fixture(autouse=True)
 def _seed():
     torch.manual_seed(0)
+
+
+# The slow lane: whole modules that run the scripts end to end (subprocesses), learn, or build
+# the docs; `python -m pytest -m "not slow"` is the unit lane.
+SLOW_MODULES = {"test_example", "test_methods", "test_evaluate", "test_learning", "test_ray", "test_readme",
+                "test_docs"}
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        if item.path.stem in SLOW_MODULES:
+            item.add_marker(pytest.mark.slow)

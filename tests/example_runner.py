@@ -1,4 +1,7 @@
-"""Runs ``examples/sail_td3.py`` in a subprocess, as a user would (shared by the example tests)."""
+"""Runs the training scripts (``examples/sail_td3.py``, ``gail.py``, ``bc.py``) and ``evaluate.py`` in a
+subprocess, as a user would (shared by the example tests). Run folders are read with
+``torchrl_sail.runs.read_scalar`` (re-exported here)."""
+
 from __future__ import annotations
 
 import os
@@ -6,28 +9,46 @@ import subprocess
 import sys
 from pathlib import Path
 
+from torchrl_sail.runs import read_scalar  # noqa: F401  (the tests read logged scalars with it)
+
 REPO = Path(__file__).resolve().parents[1]
-SCRIPT = REPO / "examples" / "sail_td3.py"
+EXAMPLES = REPO / "examples"
+SCRIPT = EXAMPLES / "sail_td3.py"  # the off-policy methods; gail.py: on-policy; bc.py: behaviour cloning
 
 
-def start(run_dir: Path, *overrides: str) -> subprocess.Popen:
-    """Starts ``sail_td3.py hydra.run.dir=<run_dir> <overrides>`` without waiting (to kill it)."""
+def start(run_dir: Path, *overrides: str, script: str = "sail_td3.py") -> subprocess.Popen:
+    """Starts ``<script> hydra.run.dir=<run_dir> <overrides>`` without waiting (to kill it)."""
     env = {**os.environ, "WANDB_SILENT": "true"}
-    return subprocess.Popen([sys.executable, str(SCRIPT), f"hydra.run.dir={run_dir}", *overrides],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env, cwd=REPO)
+    return subprocess.Popen(
+        [sys.executable, str(EXAMPLES / script), f"hydra.run.dir={run_dir}", *overrides],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        cwd=REPO,
+    )
 
 
-def run(run_dir: Path, *overrides: str, check: bool = True, multirun: bool = False,
-        env: dict | None = None, prefix: tuple[str, ...] = ()) -> subprocess.CompletedProcess:
-    """``python examples/sail_td3.py hydra.run.dir=<run_dir> <overrides>``; raises on failure if ``check``.
+def run(
+    run_dir: Path,
+    *overrides: str,
+    script: str = "sail_td3.py",
+    check: bool = True,
+    multirun: bool = False,
+    env: dict | None = None,
+    prefix: tuple[str, ...] = (),
+) -> subprocess.CompletedProcess:
+    """``python examples/<script> hydra.run.dir=<run_dir> <overrides>``; raises on failure if ``check``.
 
-    With ``multirun=True`` it runs ``sail_td3.py -m hydra.sweep.dir=<run_dir> <overrides>`` instead.
-    ``env`` adds environment variables; ``prefix`` is a command the script runs under (e.g. ``unshare``).
+    ``script`` is ``sail_td3.py`` (the default: the off-policy methods), ``gail.py`` (gail, pofd) or
+    ``bc.py``. With ``multirun=True`` it runs ``<script> -m hydra.sweep.dir=<run_dir> <overrides>``
+    instead. ``env`` adds environment variables; ``prefix`` is a command the script runs under
+    (e.g. ``unshare``).
     """
     env = {**os.environ, "WANDB_SILENT": "true", "HYDRA_FULL_ERROR": "0", **(env or {})}
     where = ["-m", f"hydra.sweep.dir={run_dir}"] if multirun else [f"hydra.run.dir={run_dir}"]
     proc = subprocess.run(
-        [*prefix, sys.executable, str(SCRIPT), *where, *overrides],
+        [*prefix, sys.executable, str(EXAMPLES / script), *where, *overrides],
         capture_output=True,
         text=True,
         env=env,
@@ -35,25 +56,24 @@ def run(run_dir: Path, *overrides: str, check: bool = True, multirun: bool = Fal
         cwd=REPO,
     )
     if check and proc.returncode != 0:
-        raise AssertionError(f"sail_td3.py failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-5000:]}")
+        raise AssertionError(f"{script} failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-5000:]}")
     return proc
 
 
 def evaluate(*overrides: str, env: dict | None = None, check: bool = True) -> subprocess.CompletedProcess:
     """``python examples/evaluate.py <overrides>`` (``MUJOCO_GL=egl`` unless ``env`` says otherwise)."""
     env = {**os.environ, "MUJOCO_GL": "egl", **(env or {})}
-    proc = subprocess.run([sys.executable, str(SCRIPT.parent / "evaluate.py"), *overrides], capture_output=True,
-                          text=True, cwd=REPO, timeout=600, env=env)
+    proc = subprocess.run(
+        [sys.executable, str(EXAMPLES / "evaluate.py"), *overrides],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=600,
+        env=env,
+    )
     if check and proc.returncode != 0:
         raise AssertionError(f"evaluate.py failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-5000:]}")
     return proc
-
-
-def scalar(run_dir: Path, tag: str) -> list[tuple[int, float]]:
-    """(frames, value) rows of one scalar written by TorchRL's CSV logger."""
-    path = run_dir / "logs" / "scalars" / f"{tag}.csv"
-    rows = [line.split(",") for line in path.read_text().splitlines() if line.strip()]
-    return [(int(float(s)), float(v)) for s, v in rows]
 
 
 class Captured:
@@ -85,17 +105,19 @@ def saved(run_dir: Path, *names: str) -> dict:
     return {name: value.state if isinstance(value, Captured) else value for name, value in components.items()}
 
 
-def fail_in_process(run_dir: Path, *overrides: str) -> str:
-    """Runs ``sail_td3.py``'s ``main`` in this process on the composed config and returns the error it
+def fail_in_process(run_dir: Path, *overrides: str, script: str = "sail_td3.py") -> str:
+    """Runs ``script``'s ``main`` in this process on the composed config and returns the error it
     stops with (composition errors included), for input that must fail before training: the same
     code path as the script, without a 5-second interpreter start per case."""
+    import importlib
+
     from hydra import compose, initialize_config_dir
     from hydra.core.hydra_config import HydraConfig
     from omegaconf import open_dict
 
-    if str(SCRIPT.parent) not in sys.path:
-        sys.path.insert(0, str(SCRIPT.parent))
-    import sail_td3
+    if str(EXAMPLES) not in sys.path:
+        sys.path.insert(0, str(EXAMPLES))
+    module = importlib.import_module(Path(script).stem)
 
     try:
         with initialize_config_dir(config_dir=str(REPO / "conf"), version_base="1.3"):
@@ -104,7 +126,7 @@ def fail_in_process(run_dir: Path, *overrides: str) -> str:
             cfg.hydra.runtime.output_dir = str(run_dir)
         HydraConfig.instance().set_config(cfg)
         Path(run_dir).mkdir(parents=True, exist_ok=True)
-        sail_td3.main.__wrapped__(cfg)
+        module.main.__wrapped__(cfg)
     except Exception as err:  # noqa: BLE001 (the message is what the tests check)
         return f"{type(err).__name__}: {err}" + (f"\n{err.__cause__}" if err.__cause__ else "")
-    raise AssertionError(f"sail_td3.py {' '.join(overrides)} did not fail")
+    raise AssertionError(f"{script} {' '.join(overrides)} did not fail")

@@ -1,4 +1,5 @@
 """Tests for AbsorbingStateTransform (envs/absorbing.py): DAC's absorbing state."""
+
 from __future__ import annotations
 
 import argparse
@@ -9,7 +10,7 @@ from tensordict import TensorDict
 from torchrl.data import Bounded
 from torchrl.envs.utils import check_env_specs
 
-from torchrl_sail import AbsorbingStateTransform, make_sail_env, SAILLoss
+from torchrl_sail import AbsorbingStateTransform, SAILLoss, make_sail_env
 
 
 def _transitions(terminated, truncated):
@@ -18,11 +19,21 @@ def _transitions(terminated, truncated):
     terminated = torch.tensor(terminated).unsqueeze(-1)
     truncated = torch.tensor(truncated).unsqueeze(-1)
     t = torch.arange(n, dtype=torch.float32).unsqueeze(-1)
-    return TensorDict({
-        "observation": t, "action": 10 + t, "step_count": t.long(),
-        "next": {"observation": t + 1, "reward": 100 + t, "terminated": terminated, "truncated": truncated,
-                 "done": terminated | truncated},
-    }, batch_size=[n])
+    return TensorDict(
+        {
+            "observation": t,
+            "action": 10 + t,
+            "step_count": t.long(),
+            "next": {
+                "observation": t + 1,
+                "reward": 100 + t,
+                "terminated": terminated,
+                "truncated": truncated,
+                "done": terminated | truncated,
+            },
+        },
+        batch_size=[n],
+    )
 
 
 class TestAbsorbingStateTransform:
@@ -93,10 +104,11 @@ class TestAbsorbingStateTransform:
 
         spec = B(-1.0, 1.0, shape=(1,))
         transform = AbsorbingStateTransform()
-        actor = TensorDictSequential(TensorDictModule(MLP(in_features=2, out_features=1, num_cells=[4]),
-                                                      ["observation"], ["param"]),
-                                     TanhModule(in_keys=["param"], out_keys=["action"], spec=spec),
-                                     transform.action_mask())
+        actor = TensorDictSequential(
+            TensorDictModule(MLP(in_features=2, out_features=1, num_cells=[4]), ["observation"], ["param"]),
+            TanhModule(in_keys=["param"], out_keys=["action"], spec=spec),
+            transform.action_mask(),
+        )
         critic = ValueOperator(MLP(in_features=3, out_features=1, num_cells=[4]), in_keys=["action", "observation"])
         loss = SAILLoss(actor, critic, action_spec=spec, policy_noise=0.0, noise_clip=0.0)
         loss.make_value_estimator(gamma=0.9)

@@ -1,12 +1,12 @@
 """``benchmarks/aggregate.py`` on synthetic run folders, and the commands ``run_matrix.py`` and
 ``make_teachers.py`` build (no training)."""
+
 from __future__ import annotations
 
 import csv
 import importlib.util
 import json
 import shlex
-import statistics
 import sys
 from pathlib import Path
 
@@ -31,25 +31,48 @@ make_teachers = load_script("make_teachers")
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 
-def write_run(folder: Path, *, algo: str = "sail", seed: int = 0, env: str = "Hopper-v4",
-              evals: list[tuple[int, float]] = ((1000, 10.0), (2000, 50.0), (3000, 100.0)),
-              teacher_return: float = 150.0, teacher_path: str | None = "/data/paper.npz",
-              total_frames: int = 3000, frames: int | None = 3000, finished: bool = True,
-              offline: bool = False, **config_extra) -> Path:
+def write_run(
+    folder: Path,
+    *,
+    algo: str = "sail",
+    seed: int = 0,
+    env: str = "Hopper-v4",
+    evals: list[tuple[int, float]] = ((1000, 10.0), (2000, 50.0), (3000, 100.0)),
+    teacher_return: float = 150.0,
+    teacher_path: str | None = "/data/paper.npz",
+    total_frames: int = 3000,
+    frames: int | None = 3000,
+    finished: bool = True,
+    offline: bool = False,
+    **config_extra,
+) -> Path:
     """A run folder as ``sail_td3.py`` writes it: config.yaml, the eval CSV, summary.json if finished."""
     folder.mkdir(parents=True)
-    config = {"env": {"name": env}, "algo": {"name": algo}, "seed": seed, "teacher": {"path": teacher_path},
-              "collector": {"total_frames": total_frames}, **config_extra}
+    config = {
+        "env": {"name": env},
+        "algo": {"name": algo},
+        "seed": seed,
+        "teacher": {"path": teacher_path},
+        "collector": {"total_frames": total_frames},
+        **config_extra,
+    }
     (folder / "config.yaml").write_text(yaml.safe_dump(config))
     scalars = folder / "logs" / "scalars" / "eval"
     scalars.mkdir(parents=True)
     (scalars / "return.csv").write_text("".join(f"{f},{v}\n" for f, v in evals))
     if finished:
         passed = next((f for f, v in evals if v > teacher_return), None)
-        summary = {"env": env, "algo": algo, "seed": seed, "teacher_return": teacher_return,
-                   "teacher_source": teacher_path, "frames": frames,
-                   "final_eval_return": evals[-1][1] if evals else None,
-                   "passed_teacher_at_frame": passed, **({"offline": True} if offline else {})}
+        summary = {
+            "env": env,
+            "algo": algo,
+            "seed": seed,
+            "teacher_return": teacher_return,
+            "teacher_source": teacher_path,
+            "frames": frames,
+            "final_eval_return": evals[-1][1] if evals else None,
+            "passed_teacher_at_frame": passed,
+            **({"offline": True} if offline else {}),
+        }
         (folder / "summary.json").write_text(json.dumps(summary))
     return folder
 
@@ -70,8 +93,15 @@ def frames_curve(values: list[float]) -> list[tuple[int, float]]:
 
 
 def test_run_headline_is_the_mean_of_the_last_five_evals(tmp_path):
-    run = aggregate.load_run(write_run(tmp_path / "a", evals=frames_curve([1, 2, 3, 4, 5, 6, 7]),
-                                       teacher_return=4.5, total_frames=7000, frames=7000))
+    run = aggregate.load_run(
+        write_run(
+            tmp_path / "a",
+            evals=frames_curve([1, 2, 3, 4, 5, 6, 7]),
+            teacher_return=4.5,
+            total_frames=7000,
+            frames=7000,
+        )
+    )
     assert run.problem is None and run.headline_evals == 5
     assert run.headline_return == 5.0  # mean of 3..7
     assert run.final_return == 7.0 and run.best_return == 7.0
@@ -84,8 +114,15 @@ def test_run_final_best_and_frames_to_pass_differ_on_a_bumpy_curve(tmp_path):
     assert run.headline_return == pytest.approx(27 / 5)  # (9 + 4 + 5 + 6 + 3) / 5
     assert run.final_return == 3.0 and run.best_return == 9.0
     assert run.passed_teacher_at() == 3000
-    never = aggregate.load_run(write_run(tmp_path / "b", evals=evals, teacher_return=9.0,  # equal is not above
-                                         total_frames=7000, frames=7000))
+    never = aggregate.load_run(
+        write_run(
+            tmp_path / "b",
+            evals=evals,
+            teacher_return=9.0,  # equal is not above
+            total_frames=7000,
+            frames=7000,
+        )
+    )
     assert never.passed_teacher_at() is None
 
 
@@ -98,17 +135,27 @@ def test_run_with_three_evals_averages_all_three_and_says_so(tmp_path):
     row = rows["Hopper-v4", "paper", "sail"]
     assert float(row["last5_mean"]) == 30.0 and row["headline_evals_min"] == "3"
     assert "| sail | 30.0 † | n/a | 1 | 60.0 | 60.0 | 0.20 | n/a (0/1 seeds passed) |" in text
-    assert ("Hopper-v4 / paper / sail: fewer than 5 evaluations, so the headline averages all of them "
-            "(evaluations per seed: seed 0: 3)") in text
+    assert (
+        "Hopper-v4 / paper / sail: fewer than 5 evaluations, so the headline averages all of them "
+        "(evaluations per seed: seed 0: 3)"
+    ) in text
 
 
 def test_group_headline_mean_std_ci_final_best_and_seeds_passed(tmp_path):
-    curves = [[0, 500, 90, 110, 100, 80, 120],  # last 5: 100; final 120; best 500; passes 250 at 2000
-              [0, 0, 190, 210, 200, 180, 220],  # last 5: 200; final 220; best 220; never passes 250
-              [0, 0, 290, 310, 300, 280, 320]]  # last 5: 300; final 320; best 320; passes at 3000
+    curves = [
+        [0, 500, 90, 110, 100, 80, 120],  # last 5: 100; final 120; best 500; passes 250 at 2000
+        [0, 0, 190, 210, 200, 180, 220],  # last 5: 200; final 220; best 220; never passes 250
+        [0, 0, 290, 310, 300, 280, 320],
+    ]  # last 5: 300; final 320; best 320; passes at 3000
     for seed, curve in enumerate(curves):
-        write_run(tmp_path / "runs" / f"seed{seed}", seed=seed, evals=frames_curve(curve), teacher_return=250.0,
-                  total_frames=7000, frames=7000)
+        write_run(
+            tmp_path / "runs" / f"seed{seed}",
+            seed=seed,
+            evals=frames_curve(curve),
+            teacher_return=250.0,
+            total_frames=7000,
+            frames=7000,
+        )
     text, rows = run_aggregate([tmp_path / "runs"], tmp_path / "out")
     row = rows["Hopper-v4", "paper", "sail"]
     assert float(row["last5_mean"]) == pytest.approx(200.0)
@@ -123,8 +170,10 @@ def test_group_headline_mean_std_ci_final_best_and_seeds_passed(tmp_path):
     assert aggregate.bootstrap_ci([100.0, 200.0, 300.0]) == (pytest.approx(low), pytest.approx(high))  # fixed seed
     assert list(read_csv(tmp_path / "out" / "results.csv")[0])[3] == "last5_mean"  # the headline column first
     assert "| method | last-5 mean ± std | 95% CI |" in text
-    assert (f"| Hopper-v4 | paper (250.0) | sail | 200.0 ± 100.0 | [{low:.1f}, {high:.1f}] | 3 | 220.0 | 346.7 | "
-            "0.80 | 2500 (2/3 seeds passed) |") in text
+    assert (
+        f"| Hopper-v4 | paper (250.0) | sail | 200.0 ± 100.0 | [{low:.1f}, {high:.1f}] | 3 | 220.0 | 346.7 | "
+        "0.80 | 2500 (2/3 seeds passed) |"
+    ) in text
     assert "## Missing or unfinished runs\n\nNone." in text
     assert "## Notes" not in text  # 5 evals per seed, no eval.episodes in the config
 
@@ -208,8 +257,13 @@ def test_outputs_written_one_png_per_env_and_teacher(tmp_path):
     for seed in (0, 1):
         write_run(tmp_path / f"hop{seed}", seed=seed)
         write_run(tmp_path / f"hop_weak{seed}", seed=seed, teacher_path="/t/weak.pt", teacher_return=50.0)
-        write_run(tmp_path / f"walk{seed}", seed=seed, env="Walker2d-v4", teacher_path=None,
-                  evals=[(1000, 1.0), (2000 + seed * 500, 2.0), (3000, 3.0)])  # different eval frames
+        write_run(
+            tmp_path / f"walk{seed}",
+            seed=seed,
+            env="Walker2d-v4",
+            teacher_path=None,
+            evals=[(1000, 1.0), (2000 + seed * 500, 2.0), (3000, 3.0)],
+        )  # different eval frames
         write_run(tmp_path / f"unknown{seed}", seed=seed, algo="zzz_new")
     out = tmp_path / "out"
     text, rows = run_aggregate([tmp_path], out)
@@ -218,14 +272,20 @@ def test_outputs_written_one_png_per_env_and_teacher(tmp_path):
     assert pngs == ["curves_Hopper-v4_paper.png", "curves_Hopper-v4_weak.png", "curves_Walker2d-v4_shipped.png"]
     assert all((out / name).read_bytes().startswith(PNG_MAGIC) for name in pngs)
     # Teachers by return (weakest first, Table 2), unknown methods after the known ones.
-    assert list(rows) == [("Hopper-v4", "weak", "sail"), ("Hopper-v4", "paper", "sail"),
-                          ("Hopper-v4", "paper", "zzz_new"), ("Walker2d-v4", "shipped", "sail")]
+    assert list(rows) == [
+        ("Hopper-v4", "weak", "sail"),
+        ("Hopper-v4", "paper", "sail"),
+        ("Hopper-v4", "paper", "zzz_new"),
+        ("Walker2d-v4", "shipped", "sail"),
+    ]
     assert list(read_csv(out / "results.csv")[0]) == list(aggregate.CSV_COLUMNS)
 
 
 def test_curves_align_on_common_frames(tmp_path):
-    runs = [aggregate.load_run(write_run(tmp_path / f"s{seed}", seed=seed, evals=evals))
-            for seed, evals in enumerate([[(1000, 1.0), (2000, 2.0), (3000, 3.0)], [(1000, 5.0), (3000, 7.0)]])]
+    runs = [
+        aggregate.load_run(write_run(tmp_path / f"s{seed}", seed=seed, evals=evals))
+        for seed, evals in enumerate([[(1000, 1.0), (2000, 2.0), (3000, 3.0)], [(1000, 5.0), (3000, 7.0)]])
+    ]
     frames, values = aggregate.aligned_curves(runs)
     assert frames.tolist() == [1000, 3000] and values.tolist() == [[1.0, 3.0], [5.0, 7.0]]
 
@@ -240,6 +300,41 @@ def test_duplicate_run_counted_once_and_config_differences_noted(tmp_path):
     assert "the seeds differ in optim.precision" in text
 
 
+def test_per_run_details_and_a_frame_logged_twice_counts_once(tmp_path):
+    # what benchmarks/summarize_runs.py printed, now aggregate.py --per-run: each finished run's figures
+    run = write_run(tmp_path / "runs" / "seed0", evals=[(1000, 10.0), (2000, 160.0), (2000, 170.0), (3000, 120.0)])
+    (run / "logs" / "scalars" / "train").mkdir()
+    (run / "logs" / "scalars" / "train" / "dense_return.csv").write_text("500,3.0\n1500,240.4\n")
+    summary = json.loads((run / "summary.json").read_text())
+    summary.update(
+        alpha_switched_at_frame=1500,
+        num_promoted=3,
+        teacher_threshold=21.0,
+        frames_per_second=52.25,
+        peak_memory_mb=480.4,
+    )
+    (run / "summary.json").write_text(json.dumps(summary))
+    write_run(tmp_path / "runs" / "unfinished", seed=1, finished=False)
+    text, rows = run_aggregate([tmp_path / "runs"], tmp_path / "out", per_run=True)
+    details = text.split("## Runs\n\n")[1]
+    assert details.splitlines() == [
+        f"### `{run}`: Hopper-v4, sail, teacher paper, seed 0, 3k frames",
+        "",
+        "| frames | 1k | 2k | 3k |",
+        "|---|---|---|---|",
+        "| eval return | 10 | 170 | 120 |",
+        "",
+        "- teacher return 150.0; eval first above it at 2k frames",
+        "- best eval 170, final eval 120",
+        "- best training-episode mean return logged 240",
+        "- alpha switched (first promotion) at 1500 frames; 3 promoted; final threshold C = 21",
+        "- 52.2 frames/s (since the last start), peak RSS 480 MB",
+    ]
+    assert "## Runs" not in run_aggregate([tmp_path / "runs"], tmp_path / "plain")[0]  # only with per_run
+    # the last row of a frame logged twice is the one counted (mean of 10, 170, 120)
+    assert float(rows["Hopper-v4", "paper", "sail"]["last5_mean"]) == pytest.approx(100.0)
+
+
 def test_matrix_layout_labels_runs_and_lists_missing_cells(tmp_path):
     out = tmp_path / "matrix"
     teachers = [run_matrix.Teacher("paper", tmp_path / "p.npz"), run_matrix.Teacher("shipped", None)]
@@ -247,9 +342,11 @@ def test_matrix_layout_labels_runs_and_lists_missing_cells(tmp_path):
     write_run(out / "paper" / "Hopper-v4" / "sail" / "seed0", teacher_path=str(tmp_path / "p.npz"))
     text, rows = run_aggregate([out], tmp_path / "report")
     assert list(rows) == [("Hopper-v4", "paper", "sail")]
-    for missing in (out / "paper" / "Hopper-v4" / "td3_delayed" / "seed0",
-                    out / "shipped" / "Hopper-v4" / "sail" / "seed0",
-                    out / "shipped" / "Hopper-v4" / "td3_delayed" / "seed0"):
+    for missing in (
+        out / "paper" / "Hopper-v4" / "td3_delayed" / "seed0",
+        out / "shipped" / "Hopper-v4" / "sail" / "seed0",
+        out / "shipped" / "Hopper-v4" / "td3_delayed" / "seed0",
+    ):
         assert f"`{missing}`: missing: no run folder" in text
     # Aggregating one teacher's folder expects that teacher's runs only.
     text, _ = run_aggregate([out / "paper"], tmp_path / "report_paper")
@@ -264,7 +361,9 @@ def test_matrix_layout_labels_runs_and_lists_missing_cells(tmp_path):
     missing = text.split("## Missing or unfinished runs")[1]
     assert missing.count("missing: no run folder") == 3 and "walker/Hopper-v4" not in missing
     with pytest.raises(ValueError, match="already uses the teacher label 'paper'"):
-        run_matrix.record_matrix(out, [run_matrix.Teacher("paper", tmp_path / "other.npz")], ["sail"], ["Hopper-v4"], [0])
+        run_matrix.record_matrix(
+            out, [run_matrix.Teacher("paper", tmp_path / "other.npz")], ["sail"], ["Hopper-v4"], [0]
+        )
 
 
 def test_hidden_folders_skipped_and_bad_inputs_named(tmp_path):
@@ -287,12 +386,42 @@ def test_hidden_folders_skipped_and_bad_inputs_named(tmp_path):
 def test_run_matrix_commands_for_a_file_teacher_and_the_shipped_one(tmp_path, capsys):
     teacher_file = tmp_path / "teacher, v1.npz"  # a comma would start a Hydra sweep unless quoted
     teacher_file.touch()
-    assert run_matrix.main(["--out", str(tmp_path / "m"), "--methods", "sail", "td3_delayed", "--envs", "Hopper-v4",
-                            "--seeds", "0", "1", "--teacher", f"paper={teacher_file}", "--teacher", "shipped",
-                            "--dry-run", "--", "collector.total_frames=50000"]) == 0
+    assert (
+        run_matrix.main(
+            [
+                "--out",
+                str(tmp_path / "m"),
+                "--methods",
+                "sail",
+                "td3_delayed",
+                "--envs",
+                "Hopper-v4",
+                "--seeds",
+                "0",
+                "1",
+                "--teacher",
+                f"paper={teacher_file}",
+                "--teacher",
+                "shipped",
+                "--dry-run",
+                "--",
+                "collector.total_frames=50000",
+            ]
+        )
+        == 0
+    )
     paper, shipped = [shlex.split(line)[2:] for line in capsys.readouterr().out.splitlines()]
-    assert paper[:9] == ["-m", "algo=sail,td3_delayed", "env=Hopper-v4", "seed=0,1", "hydra/launcher=joblib",
-                         "hydra.launcher.n_jobs=2", "threads=1", "resume=auto", "logger.backends=[csv]"]
+    assert paper[:9] == [
+        "-m",
+        "algo=sail,td3_delayed",
+        "env=Hopper-v4",
+        "seed=0,1",
+        "hydra/launcher=joblib",
+        "hydra.launcher.n_jobs=2",
+        "threads=1",
+        "resume=auto",
+        "logger.backends=[csv]",
+    ]
     assert f"hydra.sweep.dir={tmp_path / 'm' / 'paper'}" in paper
     assert "hydra.sweep.subdir=${env.name}/${algo.name}/seed${seed}" in paper  # left to Hydra
     assert f"teacher.path='{teacher_file}'" in paper  # quoted for Hydra
@@ -301,19 +430,69 @@ def test_run_matrix_commands_for_a_file_teacher_and_the_shipped_one(tmp_path, ca
     assert f"hydra.sweep.dir={tmp_path / 'm' / 'shipped'}" in shipped
     assert not (tmp_path / "m").exists()  # a dry run writes nothing
 
-    command = run_matrix.multirun_command(run_matrix.Teacher("shipped", None), out=tmp_path, methods=["sail"],
-                                          envs=["Hopper-v4"], seeds=[0], launcher="submitit_slurm", jobs=8)
+    command = run_matrix.multirun_command(
+        run_matrix.Teacher("shipped", None),
+        out=tmp_path,
+        methods=["sail"],
+        envs=["Hopper-v4"],
+        seeds=[0],
+        launcher="submitit_slurm",
+        jobs=8,
+    )
     assert "hydra/launcher=submitit_slurm" in command and "hydra.launcher.array_parallelism=8" in command
     assert "hydra.launcher.n_jobs=8" not in command
 
 
-@pytest.mark.parametrize("argv, message", [
-    (["--teacher", "pa/per=x.npz"], "must be a plain folder name"),
-    (["--teacher", "paper=/no/such/file.npz"], "does not exist"),
-    (["--teacher", "a", "--methods", "nope"], "unknown algo 'nope'"),
-    (["--teacher", "a", "--teacher", "a"], "labels must differ"),
-    (["--teacher", "a=README.md", "--envs", "Hopper-v4", "Walker2d-v4"], "a teacher file belongs to one env"),
-])
+def test_run_matrix_runs_each_method_with_its_familys_script(tmp_path, capsys):
+    # one multirun per teacher and script, by algo.learner: the off-policy methods, gail/pofd, bc
+    assert (
+        run_matrix.main(
+            [
+                "--out",
+                str(tmp_path / "m"),
+                "--methods",
+                "sail",
+                "gail",
+                "bc",
+                "pofd",
+                "ddpgfd",
+                "--envs",
+                "Hopper-v4",
+                "--seeds",
+                "0",
+                "--teacher",
+                "shipped",
+                "--dry-run",
+            ]
+        )
+        == 0
+    )
+    commands = [shlex.split(line) for line in capsys.readouterr().out.splitlines()]
+    assert [(Path(command[1]).name, command[3]) for command in commands] == [
+        ("sail_td3.py", "algo=sail,ddpgfd"),
+        ("gail.py", "algo=gail,pofd"),
+        ("bc.py", "algo=bc"),
+    ]
+    assert {command[1] for command in commands} == {
+        str(run_matrix.EXAMPLES / name) for name in ("sail_td3.py", "gail.py", "bc.py")
+    }
+    assert run_matrix.script_for("sail_sac") == run_matrix.SCRIPT  # learner=sac: the off-policy loop too
+    with pytest.raises(ValueError, match="one multirun per script"):
+        run_matrix.multirun_command(
+            run_matrix.Teacher("shipped", None), out=tmp_path, methods=["sail", "gail"], envs=["Hopper-v4"], seeds=[0]
+        )
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--teacher", "pa/per=x.npz"], "must be a plain folder name"),
+        (["--teacher", "paper=/no/such/file.npz"], "does not exist"),
+        (["--teacher", "a", "--methods", "nope"], "unknown algo 'nope'"),
+        (["--teacher", "a", "--teacher", "a"], "labels must differ"),
+        (["--teacher", "a=README.md", "--envs", "Hopper-v4", "Walker2d-v4"], "a teacher file belongs to one env"),
+    ],
+)
 def test_run_matrix_refuses_bad_arguments(argv, message, capsys):
     base = {"--out": ["/tmp/x"], "--methods": ["sail"], "--envs": ["Hopper-v4"], "--seeds": ["0"]}
     options = {key: value for key, value in base.items() if key not in argv}
@@ -324,13 +503,32 @@ def test_run_matrix_refuses_bad_arguments(argv, message, capsys):
 
 
 def test_make_teachers_commands_and_labels(tmp_path, capsys):
-    assert make_teachers.main(["--env", "Hopper-v4", "--budgets", "30000", "10000", "--max-return", "1000",
-                               "--out", str(tmp_path), "--dry-run"]) == 0
+    assert (
+        make_teachers.main(
+            [
+                "--env",
+                "Hopper-v4",
+                "--budgets",
+                "30000",
+                "10000",
+                "--max-return",
+                "1000",
+                "--out",
+                str(tmp_path),
+                "--dry-run",
+            ]
+        )
+        == 0
+    )
     lines = capsys.readouterr().out.splitlines()
-    assert lines[0].endswith(f"env=Hopper-v4 frames=10000 seed=0 threads=1 out={tmp_path}/Hopper-v4_10000 "
-                             f"hydra.run.dir={tmp_path}/logs/Hopper-v4_10000 max_return=1000.0")
-    assert lines[-1] == (f"run_matrix.py arguments: --teacher td3_10k={tmp_path}/Hopper-v4_10000 "
-                         f"--teacher td3_30k={tmp_path}/Hopper-v4_30000")
+    assert lines[0].endswith(
+        f"env=Hopper-v4 frames=10000 seed=0 threads=1 out={tmp_path}/Hopper-v4_10000 "
+        f"hydra.run.dir={tmp_path}/logs/Hopper-v4_10000 max_return=1000.0"
+    )
+    assert lines[-1] == (
+        f"run_matrix.py arguments: --teacher td3_10k={tmp_path}/Hopper-v4_10000 "
+        f"--teacher td3_30k={tmp_path}/Hopper-v4_30000"
+    )
     with pytest.raises(SystemExit):
         make_teachers.parse_args(["--env", "Hopper-v4", "--budgets", "1000"])
     assert "below eval_every_frames=5000" in capsys.readouterr().err

@@ -1,4 +1,5 @@
 """``benchmarks/campaign.py``: the order of the campaign's runs and the commands it builds (no training)."""
+
 from __future__ import annotations
 
 import argparse
@@ -31,7 +32,8 @@ def test_plan_fills_the_table_seed_0_first():
     cells = campaign.plan()
     # seed 0 of SAIL and DAC on every env comes first
     assert [(c.env, c.method, c.seed) for c in cells[:8]] == [
-        (env, method, 0) for env in ENVS for method in ("sail", "dac")]
+        (env, method, 0) for env in ENVS for method in ("sail", "dac")
+    ]
     main = [c for c in cells if c.stage == "main"]
     counts = Counter((c.method, c.seed) for c in main)
     for method in ("sail", "dac", "bc"):  # 3 seeds on 4 envs
@@ -44,8 +46,10 @@ def test_plan_fills_the_table_seed_0_first():
     assert stages == sorted(stages)
     sweeps = [c.seed for c in cells if order[c.stage] == 2]
     assert sweeps == sorted(sweeps)
-    assert {(c.env, c.frames) for c in cells if c.stage == "scale"} == {("HalfCheetah-v4", 1_000_000),
-                                                                        ("Hopper-v4", 1_000_000)}
+    assert {(c.env, c.frames) for c in cells if c.stage == "scale"} == {
+        ("HalfCheetah-v4", 1_000_000),
+        ("Hopper-v4", 1_000_000),
+    }
     buffer = [c.overrides for c in cells if c.stage == "buffer"]
     assert sorted(buffer) == sorted([("teacher.eviction=fifo",), ("teacher.eviction=union",)] * 2)
     assert len(set(cells)) == len(cells)  # no run twice
@@ -55,13 +59,26 @@ def test_command_is_resumable_single_threaded_and_in_its_own_folder(tmp_path):
     cell = campaign.Cell("main", "Walker2d-v4", "dac", 2, 300_000)
     teacher = tmp_path / campaign.PAPER_TEACHERS["Walker2d-v4"]
     cmd = campaign.command(cell, tmp_path / "out", teacher, python="python")
-    assert cmd[:2] == ["python", str(campaign.SCRIPT)]
-    for arg in ("algo=dac", "env=Walker2d-v4", "seed=2", "collector.total_frames=300000", "threads=1",
-                "resume=auto", "eval.episodes=10", "checkpoint.every_frames=25000", f"teacher.path={teacher}"):
+    examples = campaign.REPO / "examples"
+    assert cmd[:2] == ["python", str(examples / "sail_td3.py")]
+    for arg in (
+        "algo=dac",
+        "env=Walker2d-v4",
+        "seed=2",
+        "collector.total_frames=300000",
+        "threads=1",
+        "resume=auto",
+        "eval.episodes=10",
+        "checkpoint.every_frames=25000",
+        f"teacher.path={teacher}",
+    ):
         assert arg in cmd
     assert cmd[-1] == f"hydra.run.dir={tmp_path / 'out' / 'main' / 'paper' / 'Walker2d-v4' / 'dac' / 'seed2'}"
     shipped = campaign.Cell("teachers", "Hopper-v4", "sail", 0, 300_000, teacher="shipped")
     assert not any(arg.startswith("teacher.path=") for arg in campaign.command(shipped, tmp_path, None))
+    # each method runs with its family's script
+    bc = campaign.command(campaign.Cell("main", "Hopper-v4", "bc", 0, 300_000), tmp_path, teacher, python="python")
+    assert bc[:3] == ["python", str(examples / "bc.py"), "algo=bc"]
 
 
 def test_dry_run_prints_the_queue_and_checks_the_teachers(tmp_path, capsys):
@@ -69,8 +86,12 @@ def test_dry_run_prints_the_queue_and_checks_the_teachers(tmp_path, capsys):
     teachers.mkdir()
     for name in campaign.PAPER_TEACHERS.values():
         (teachers / name).touch()
-    assert campaign.main(["--teachers-dir", str(teachers), "--out", str(tmp_path / "out"),
-                          "--stages", "main", "--dry-run"]) == 0
+    assert (
+        campaign.main(
+            ["--teachers-dir", str(teachers), "--out", str(tmp_path / "out"), "--stages", "main", "--dry-run"]
+        )
+        == 0
+    )
     lines = capsys.readouterr().out.splitlines()
     assert len(lines) == 44 and "algo=sail" in lines[0] and "env=Hopper-v4" in lines[0]
     assert not (tmp_path / "out").exists()  # a dry run writes nothing
@@ -86,8 +107,11 @@ def test_collect_copies_finished_runs_compactly_and_aggregate_reads_them(tmp_pat
     (run_dir / "logs" / "scalars" / "d").mkdir(parents=True)
     (run_dir / "logs" / "scalars" / "eval").mkdir()
     (out / "main" / "matrix.json").write_text(json.dumps({"teachers": {"paper": "/t.npz"}}))
-    (run_dir / "config.yaml").write_text(yaml.safe_dump(
-        {"env": {"name": "Hopper-v4"}, "algo": {"name": "sail"}, "seed": 0, "collector": {"total_frames": 2000}}))
+    (run_dir / "config.yaml").write_text(
+        yaml.safe_dump(
+            {"env": {"name": "Hopper-v4"}, "algo": {"name": "sail"}, "seed": 0, "collector": {"total_frames": 2000}}
+        )
+    )
     (run_dir / "summary.json").write_text(json.dumps({"frames": 2000, "total_frames": 2000}))
     (run_dir / "logs" / "scalars" / "eval" / "return.csv").write_text("1000,12.5\n2000,30.0\n")
     (run_dir / "logs" / "scalars" / "d" / "accuracy_agent.csv").write_text("1000,0.75\n")
@@ -99,9 +123,15 @@ def test_collect_copies_finished_runs_compactly_and_aggregate_reads_them(tmp_pat
     assert campaign.collect(out, dest) == [dest / run_dir.relative_to(out)]
     target = dest / "main" / "paper" / "Hopper-v4" / "sail" / "seed0"
     assert sorted(p.name for p in target.iterdir()) == ["config.yaml", "scalars.csv", "summary.json"]
-    assert (dest / "main" / "matrix.json").exists() and not (dest / "main" / "paper" / "Hopper-v4" / "sail" / "seed1").exists()
+    assert (dest / "main" / "matrix.json").exists() and not (
+        dest / "main" / "paper" / "Hopper-v4" / "sail" / "seed1"
+    ).exists()
     assert (target / "scalars.csv").read_text().splitlines() == [
-        "tag,frames,value", "eval/return,1000,12.5", "eval/return,2000,30.0", "d/accuracy_agent,1000,0.75"]
+        "tag,frames,value",
+        "eval/return,1000,12.5",
+        "eval/return,2000,30.0",
+        "d/accuracy_agent,1000,0.75",
+    ]
     aggregate = load_script("aggregate")
     assert aggregate.read_scalar(target, "eval/return") == [(1000, 12.5), (2000, 30.0)]
     assert aggregate.read_scalar(target, "d/accuracy_agent") == [(1000, 0.75)]
@@ -113,13 +143,16 @@ def test_matrix_records_every_stage_and_label(tmp_path, monkeypatch):
     for name in campaign.PAPER_TEACHERS.values():
         (teachers / name).touch()
     launched = []
-    monkeypatch.setattr(campaign.subprocess, "run", lambda cmd, **kw: launched.append(cmd) or argparse.Namespace(returncode=0))
+    monkeypatch.setattr(
+        campaign.subprocess, "run", lambda cmd, **kw: launched.append(cmd) or argparse.Namespace(returncode=0)
+    )
     assert campaign.main(["--teachers-dir", str(teachers), "--out", str(tmp_path / "out"), "--jobs", "1"]) == 0
     assert len(launched) == len([c for c in campaign.plan() if c.teacher != "random"])
     main = json.loads((tmp_path / "out" / "main" / "matrix.json").read_text())
     assert main["teachers"] == {"paper": str(teachers)}  # the authors' folder: one file per env
     assert {(s["envs"][0], s["methods"][0], s["seeds"][0]) for s in main["sweeps"]} == {
-        (c.env, c.method, c.seed) for c in campaign.plan() if c.stage == "main"}
+        (c.env, c.method, c.seed) for c in campaign.plan() if c.stage == "main"
+    }
     buffer = json.loads((tmp_path / "out" / "buffer" / "matrix.json").read_text())
     assert set(buffer["teachers"]) == {"paper-fifo", "paper-union"}
     assert json.loads((tmp_path / "out" / "teachers" / "matrix.json").read_text())["teachers"] == {"shipped": None}

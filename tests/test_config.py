@@ -1,4 +1,6 @@
-"""The typed config schema (examples/config_schema.py): every shipped YAML conforms, bad values name their key."""
+"""The typed config schema (examples/config_schema.py): the source of every default; every shipped YAML
+conforms and holds only what differs from it; bad values name their key."""
+
 from __future__ import annotations
 
 import sys
@@ -11,7 +13,19 @@ from omegaconf import OmegaConf
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "examples"))
-from config_schema import Learner, register_config_schema, SAILConfig  # noqa: E402
+from config_schema import (
+    AlgoConfig,
+    EnvConfig,
+    Learner,
+    LRDecayConfig,
+    NStepConfig,  # noqa: E402
+    OptimConfig,
+    PPOConfig,
+    RNDConfig,
+    SAILConfig,
+    check_config,
+    register_config_schema,
+)
 
 register_config_schema()
 ALGOS = sorted(p.stem for p in (REPO / "conf" / "algo").glob("*.yaml"))
@@ -32,6 +46,47 @@ def test_defaults_are_the_papers_budget_and_typed():
     assert make("collector.total_frames=3000000").collector.total_frames == 3_000_000
 
 
+def leaves(node, prefix: tuple = ()) -> dict:
+    """``{path: value}`` of a plain mapping's leaves (an empty mapping is a leaf: it sets a block's defaults)."""
+    if isinstance(node, dict) and node:
+        return {key: value for name, child in node.items() for key, value in leaves(child, (*prefix, name)).items()}
+    return {prefix: node}
+
+
+def yaml_file(path: Path) -> tuple[dict, list]:
+    """A conf/ file's values (its defaults list removed) and that defaults list."""
+    data = OmegaConf.to_container(OmegaConf.load(path))
+    return data, data.pop("defaults", [])
+
+
+@pytest.mark.parametrize(
+    "path",
+    sorted((REPO / "conf" / "env").glob("*.yaml")) + sorted((REPO / "conf" / "algo").glob("*.yaml")),
+    ids=lambda path: f"{path.parent.name}/{path.name}",
+)
+def test_yaml_files_hold_only_what_differs_from_the_schema(path):
+    # One source of defaults: a value an env or method file sets is one the schema (or the method it
+    # extends, e.g. pofd extends gail) does not already give.
+    data, defaults = yaml_file(path)
+    # the optional blocks (null by default) with their own defaults, which a file setting the block gets
+    algo = AlgoConfig(rnd=RNDConfig(), ppo=PPOConfig(), nstep=NStepConfig())
+    if path.read_text().startswith("# @package _global_"):  # e.g. dac_published: algo.*, env.*, optim.*, ...
+        base = OmegaConf.to_container(
+            OmegaConf.structured(SAILConfig(algo=algo, optim=OptimConfig(actor_lr_decay=LRDecayConfig())))
+        )
+    else:
+        base = OmegaConf.to_container(OmegaConf.structured(EnvConfig if path.parent.name == "env" else algo))
+        for parent in [entry for entry in defaults if entry != "_self_"]:
+            base = OmegaConf.to_container(OmegaConf.merge(base, yaml_file(path.parent / f"{parent}.yaml")[0]))
+    base = leaves(base)
+    repeated = {
+        ".".join(key): value
+        for key, value in leaves(data).items()
+        if key != ("name",) and key in base and base[key] == value
+    }
+    assert not repeated, f"{path.name} repeats the schema's defaults: {repeated}"
+
+
 @pytest.mark.parametrize("algo", ALGOS)
 def test_every_algo_conforms(algo):
     cfg = make(f"algo={algo}")
@@ -45,16 +100,22 @@ def test_every_env_conforms(env):
     assert cfg.env.name == env and cfg.teacher.capacity == cfg.env.teacher_capacity
 
 
-@pytest.mark.parametrize("override, message", [
-    ("optim.lr=abc", "Value 'abc' of type 'str' could not be converted to Float\n    full_key: optim.lr"),
-    ("collector.total_frames=1e6", "could not be converted to Integer\n    full_key: collector.total_frames"),
-    ("algo.adaptive=maybe", "Value 'maybe' is not a valid bool (type str)\n    full_key: algo.adaptive"),
-    ("network.activation=gelu", "Invalid value 'gelu', expected one of [relu, tanh, elu]\n    full_key: network.activation"),
-    ("logger.backends=[csv,mlflow]", "Invalid value 'mlflow', expected one of [csv, wandb, tensorboard]"),
-    ("network.actor_cells=[400,big]", "full_key: network.actor_cells[1]"),
-    ("optim.lrr=1", "Key 'lrr' not in 'OptimConfig'\n    full_key: optim.lrr"),
-    ("teacher.eviction=lru", "full_key: teacher.eviction"),
-])
+@pytest.mark.parametrize(
+    "override, message",
+    [
+        ("optim.lr=abc", "Value 'abc' of type 'str' could not be converted to Float\n    full_key: optim.lr"),
+        ("collector.total_frames=1e6", "could not be converted to Integer\n    full_key: collector.total_frames"),
+        ("algo.adaptive=maybe", "Value 'maybe' is not a valid bool (type str)\n    full_key: algo.adaptive"),
+        (
+            "network.activation=gelu",
+            "Invalid value 'gelu', expected one of [relu, tanh, elu]\n    full_key: network.activation",
+        ),
+        ("logger.backends=[csv,mlflow]", "Invalid value 'mlflow', expected one of [csv, wandb, tensorboard]"),
+        ("network.actor_cells=[400,big]", "full_key: network.actor_cells[1]"),
+        ("optim.lrr=1", "Key 'lrr' not in 'OptimConfig'\n    full_key: optim.lrr"),
+        ("teacher.eviction=lru", "full_key: teacher.eviction"),
+    ],
+)
 def test_wrong_value_names_the_key(override, message):
     with pytest.raises(ConfigCompositionException) as err:
         make(override)
@@ -71,53 +132,63 @@ def test_optional_blocks_are_typed_when_set():
     with pytest.raises(ConfigCompositionException) as err:
         make("algo=ddpgfd", "algo.nstep.n=ten")
     assert "full_key: algo.nstep.n" in str(err.value.__cause__)
-    cfg = make("algo=sail_rnd", "algo.rnd.coef=0.5", "resume=auto",
-               "collector.backend_options={remote_configs: {num_cpus: 1}}")
-    assert cfg.algo.rnd.coef == 0.5 and cfg.resume == "auto" and cfg.collector.backend_options.remote_configs.num_cpus == 1
+    cfg = make(
+        "algo=sail_rnd", "algo.rnd.coef=0.5", "resume=auto", "collector.backend_options={remote_configs: {num_cpus: 1}}"
+    )
+    assert (
+        cfg.algo.rnd.coef == 0.5 and cfg.resume == "auto" and cfg.collector.backend_options.remote_configs.num_cpus == 1
+    )
 
 
-@pytest.mark.parametrize("overrides, message", [
-    (["optim.batch_size=1"], "config optim.batch_size=1: must be >= 2"),
-    (["optim.gamma=1.5"], "optim.gamma=1.5: must be in (0, 1]"),
-    (["resume=maybe"], "config resume='maybe': use true, false or auto"),
-    (["eval.video_every_frames=-1"], "eval.video_every_frames=-1: must be >= 0 (0 disables)"),
-    (["algo=dac", "algo.adaptive=true"], "absorbing states need a fixed teacher"),
-    (["algo=sail_sac", "optim.precision=bf16"], "bf16 is TD3's fused step only"),
-    (["algo.learner=ppo"], "algo.learner=ppo needs the PPO settings"),
-    (["algo=gail", "algo.reward.source=env"], "the PPO generator (gail, pofd) learns from D's reward"),
-    (["algo=pofd_td3", "algo.reward.coef_decay=0.5"], "and 1 unless algo.learner=ppo"),
-    (["algo=pofd", "algo.reward.coef_decay=0"], "algo.reward.coef_decay=0.0: must be in (0, 1]"),
-    (["algo=ddpgfd", "algo.nstep.n=1"], "algo.nstep.n=1: must be >= 2 (algo.nstep=null for the 1-step"),
-    (["algo=ddpgfd", "algo.nstep.lambda1=0"], "algo.nstep.lambda1=0.0: must be a finite number > 0"),
-    (["algo=ddpgfd", "algo.adaptive=true"], "the n-step loss (DDPGfD) needs algo.learner=td3, algo.reward.source=env"),
-    (["algo=ddpgfd", "algo.reward.source=discriminator"], "the n-step loss (DDPGfD) needs"),  # sample-time reward
-    (["algo=ddpgfd", "algo.l2_coef=-1e-5"], "algo.l2_coef=-1e-05: must be a finite number >= 0"),
-    (["algo=bc", "algo.l2_coef=1e-5"], "and 0 unless algo.learner is td3 or sac"),
-    # a collector batch longer than D's cadence, or one that does not divide it
-    (["collector.frames_per_batch=1000"], "optim.discriminator.every_frames=500: must be a multiple of "
-                                          "collector.frames_per_batch=1000"),
-    (["collector.frames_per_batch=300"], "optim.discriminator.every_frames=500: must be a multiple"),
-    (["algo=td3_delayed", "collector.frames_per_batch=300"], "optim.train_every_frames=1000: must be a multiple"),
-    (["algo=sail_sac", "optim.discriminator.every_frames=750"], "optim.discriminator.every_frames=750"),
-])
+@pytest.mark.parametrize(
+    "overrides, message",
+    [
+        (["optim.batch_size=1"], "config optim.batch_size=1: must be >= 2"),
+        (["optim.gamma=1.5"], "optim.gamma=1.5: must be in (0, 1]"),
+        (["resume=maybe"], "config resume='maybe': use true, false or auto"),
+        (["eval.video_every_frames=-1"], "eval.video_every_frames=-1: must be >= 0 (0 disables)"),
+        (["algo=dac", "algo.adaptive=true"], "absorbing states need a fixed teacher"),
+        (["algo=sail_sac", "optim.precision=bf16"], "bf16 is TD3's fused step only"),
+        (["algo.learner=ppo"], "algo.learner=ppo needs the PPO settings"),
+        (["algo=gail", "algo.reward.source=env"], "the PPO generator (gail, pofd) learns from D's reward"),
+        (["algo=pofd_td3", "algo.reward.coef_decay=0.5"], "and 1 unless algo.learner=ppo"),
+        (["algo=pofd", "algo.reward.coef_decay=0"], "algo.reward.coef_decay=0.0: must be in (0, 1]"),
+        (["algo=ddpgfd", "algo.nstep.n=1"], "algo.nstep.n=1: must be >= 2 (algo.nstep=null for the 1-step"),
+        (["algo=ddpgfd", "algo.nstep.lambda1=0"], "algo.nstep.lambda1=0.0: must be a finite number > 0"),
+        (
+            ["algo=ddpgfd", "algo.adaptive=true"],
+            "the n-step loss (DDPGfD) needs algo.learner=td3, algo.reward.source=env",
+        ),
+        (["algo=ddpgfd", "algo.reward.source=discriminator"], "the n-step loss (DDPGfD) needs"),  # sample-time reward
+        (["algo=ddpgfd", "algo.l2_coef=-1e-5"], "algo.l2_coef=-1e-05: must be a finite number >= 0"),
+        (["algo=bc", "algo.l2_coef=1e-5"], "and 0 unless algo.learner is td3 or sac"),
+        # a collector batch longer than D's cadence, or one that does not divide it
+        (
+            ["collector.frames_per_batch=1000"],
+            "optim.discriminator.every_frames=500: must be a multiple of collector.frames_per_batch=1000",
+        ),
+        (["collector.frames_per_batch=300"], "optim.discriminator.every_frames=500: must be a multiple"),
+        (["algo=td3_delayed", "collector.frames_per_batch=300"], "optim.train_every_frames=1000: must be a multiple"),
+        (["algo=sail_sac", "optim.discriminator.every_frames=750"], "optim.discriminator.every_frames=750"),
+    ],
+)
 def test_check_config_keeps_ranges_and_cross_field_rules(overrides, message):
-    from utils import check_config
-
     with pytest.raises(ValueError, match="^config ") as err:
         check_config(make(*overrides))
     assert message in str(err.value)
     check_config(make())  # the defaults pass
 
 
-@pytest.mark.parametrize("overrides", [
-    ["collector.frames_per_batch=250"],  # divides both cadences
-    ["algo=td3_delayed", "collector.frames_per_batch=1000"],  # no D: only the TD3 cadence counts
-    ["optim.discriminator.steps=0", "collector.frames_per_batch=1000"],  # D never trained
-    ["algo=gail", "collector.frames_per_batch=300"],  # PPO: D once per on-policy batch
-])
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        ["collector.frames_per_batch=250"],  # divides both cadences
+        ["algo=td3_delayed", "collector.frames_per_batch=1000"],  # no D: only the TD3 cadence counts
+        ["optim.discriminator.steps=0", "collector.frames_per_batch=1000"],  # D never trained
+        ["algo=gail", "collector.frames_per_batch=300"],  # PPO: D once per on-policy batch
+    ],
+)
 def test_check_config_accepts_cadences_the_batch_divides(overrides):
-    from utils import check_config
-
     check_config(make(*overrides))
 
 
@@ -130,11 +201,14 @@ def test_evaluate_config_is_typed():
     assert "full_key: episodes" in str(err.value.__cause__)
 
 
-@pytest.mark.parametrize("eviction, writer, capacity", [
-    ("topk", "TopKTrajectoryWriter", 10 * 1000),  # K slots of max_episode_steps rows
-    ("union", "UnionTrajectoryWriter", None),  # the demonstrations' rows + total_frames
-    ("fifo", "FIFOTrajectoryWriter", 100_000),  # env.teacher_capacity (Hopper: the authors' 1e5)
-])
+@pytest.mark.parametrize(
+    "eviction, writer, capacity",
+    [
+        ("topk", "TopKTrajectoryWriter", 10 * 1000),  # K slots of max_episode_steps rows
+        ("union", "UnionTrajectoryWriter", None),  # the demonstrations' rows + total_frames
+        ("fifo", "FIFOTrajectoryWriter", 100_000),  # env.teacher_capacity (Hopper: the authors' 1e5)
+    ],
+)
 def test_teacher_eviction_builds_its_writer(eviction, writer, capacity):
     from utils import make_env, make_teacher
 
@@ -144,3 +218,13 @@ def test_teacher_eviction_builds_its_writer(eviction, writer, capacity):
     demonstration_rows = len(teacher)  # the shipped teacher: all of it admitted, nothing evicted
     assert teacher.writer.num_demonstrations >= 1 and demonstration_rows > 0
     assert teacher.writer.capacity == (demonstration_rows + 5000 if capacity is None else capacity)
+
+
+def test_env_kwargs_reach_the_env_and_the_teacher_check_names_them():
+    from utils import make_env, make_teacher
+
+    cfg = make("env=Hopper-v4", "+env.kwargs.exclude_current_positions_from_observation=false")
+    env = make_env(cfg, seed=0)
+    assert env.observation_spec["observation"].shape[-1] == 13  # x position + 11 + time feature
+    with pytest.raises(ValueError, match="env.kwargs"):  # the shipped teacher has 12 columns
+        make_teacher(cfg, env)

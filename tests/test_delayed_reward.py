@@ -1,4 +1,5 @@
 """Tests for :class:`torchrl_sail.envs.delayed_reward.DelayedRewardTransform`."""
+
 from __future__ import annotations
 
 import argparse
@@ -32,11 +33,8 @@ from torchrl.envs.utils import check_env_specs
 
 from torchrl_sail import DelayedRewardTransform, TimeFeature
 
-
 # The paper's tasks are the -v4 MuJoCo envs (same observation layout as the teachers' -v2).
-pytestmark = pytest.mark.filterwarnings(
-    "ignore:.*Hopper-v4 is out of date:DeprecationWarning"
-)
+pytestmark = pytest.mark.filterwarnings("ignore:.*Hopper-v4 is out of date:DeprecationWarning")
 
 
 class ListRewardEnv(EnvBase):
@@ -49,9 +47,7 @@ class ListRewardEnv(EnvBase):
     def __init__(self, rewards):
         super().__init__(batch_size=torch.Size([]))
         self.rewards = torch.tensor(rewards, dtype=torch.float32)
-        self.observation_spec = Composite(
-            observation=Unbounded(shape=(1,), dtype=torch.float32)
-        )
+        self.observation_spec = Composite(observation=Unbounded(shape=(1,), dtype=torch.float32))
         self.action_spec = Bounded(-1.0, 1.0, shape=(1,))
         self.reward_spec = Unbounded(shape=(1,), dtype=torch.float32)
         self.count = 0
@@ -114,10 +110,7 @@ def tile(values, n):
 def expected(running, steps, value_at_done):
     """Per-step delayed rewards and running returns of a periodic episode."""
     ret = tile(running, steps)
-    rew = [
-        value_at_done(running[-1]) if (i + 1) % len(running) == 0 else 0.0
-        for i in range(steps)
-    ]
+    rew = [value_at_done(running[-1]) if (i + 1) % len(running) == 0 else 0.0 for i in range(steps)]
     return torch.tensor(rew), torch.tensor(ret, dtype=torch.float64)
 
 
@@ -171,9 +164,7 @@ class TestDelayedRewardTransform:
         # 1D trajectory: episode [1.5, -3.7] ends, then -2, -30.5 ends, then 7 without done
         reward = torch.tensor([1.5, -3.7, -2.0, -30.5, 7.0]).unsqueeze(-1)
         done = torch.tensor([False, True, False, True, False]).unsqueeze(-1)
-        td = TensorDict(
-            next=TensorDict(reward=reward, done=done, batch_size=[5]), batch_size=[5]
-        )
+        td = TensorDict(next=TensorDict(reward=reward, done=done, batch_size=[5]), batch_size=[5])
         DelayedRewardTransform()(td)
         r1 = float(torch.tensor(1.5, dtype=torch.float64) + torch.tensor(-3.7).double())
         # floor(0.1 * -2.2) = -1, floor(0.1 * -32.5) = floor(-3.25) = -4, trailing: 0
@@ -203,9 +194,7 @@ class TestDelayedRewardTransform:
         for i, running in enumerate(RUNNING):
             rew, ret = expected(running, STEPS, value_at_done)
             torch.testing.assert_close(td["next", "reward"][i, :, 0], rew, rtol=0, atol=0)
-            torch.testing.assert_close(
-                td["next", "episode_return"][i, :, 0], ret, rtol=0, atol=0
-            )
+            torch.testing.assert_close(td["next", "episode_return"][i, :, 0], ret, rtol=0, atol=0)
             # the state carried at the root is the return before the step (0 after reset)
             root = torch.tensor(tile([0.0] + running[:-1], STEPS), dtype=torch.float64)
             torch.testing.assert_close(td["episode_return"][i, :, 0], root, rtol=0, atol=0)
@@ -252,7 +241,12 @@ class TestDelayedRewardTransform:
             [0, 0, 0, -4, 0, 0],
         ]
         assert td["next", "episode_return"][2, :, 0].tolist() == [
-            -9.5, -18.0, -25.5, -32.0, -9.5, -18.0,
+            -9.5,
+            -18.0,
+            -25.5,
+            -32.0,
+            -9.5,
+            -18.0,
         ]
 
     def test_scale_snaps_binary_error(self):
@@ -325,9 +319,7 @@ class TestDelayedRewardTransform:
         assert dense["next", "reward"][0, :3, 0].tolist() == [3.0, 4.0, 5.0]
         offline = DelayedRewardTransform(rounding=rounding)(dense.clone())
         assert torch.equal(offline["next", "reward"], online["next", "reward"])
-        assert torch.equal(
-            offline["next", "episode_return"], online["next", "episode_return"]
-        )
+        assert torch.equal(offline["next", "episode_return"], online["next", "episode_return"])
         # time dim not named: the last batch dim is used, [T, N] needs the name
         unnamed = dense.clone()
         unnamed.names = None
@@ -356,9 +348,7 @@ class TestDelayedRewardTransform:
         assert td["next", "episode_return"][-1].item() == pytest.approx(reference, abs=1e-9)
         assert math.floor(0.1 * td["next", "episode_return"][-1].item()) == 10
         dense = TensorDict(
-            next=TensorDict(
-                reward=r32.unsqueeze(-1), done=td["next", "done"].clone(), batch_size=[1000]
-            ),
+            next=TensorDict(reward=r32.unsqueeze(-1), done=td["next", "done"].clone(), batch_size=[1000]),
             batch_size=[1000],
         )
         out = DelayedRewardTransform()(dense)

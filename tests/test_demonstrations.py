@@ -1,16 +1,19 @@
-"""Tests for torchrl_sail.data.demonstrations (teacher files, own format, dim check)."""
+"""Tests for torchrl_sail.data: the core checks, the .npz and folder formats, the dim check."""
+
 from __future__ import annotations
 
 import functools
 import json
 import os
+import re
 from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 import torch
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from tensordict import TensorDict
 from torchrl.data import Bounded, Composite, Unbounded
 
@@ -21,18 +24,15 @@ from torchrl_sail import (
     save_demonstrations,
 )
 from torchrl_sail.data.demonstrations import METADATA_FILE, Demonstrations
+from torchrl_sail.data.episodes import RETURNS_ATOL, check_finite, check_returns
 
 HOPPER = "expert_data_no_img_Hopper_scores_1500_episodes_{}.npz"
 CHEETAH = "expert_data_no_img_HalfCheetah_scores_5600_episodes_{}.npz"
 
 # Verified by hand from episode_starts / episode_returns of each file (numpy 2.4).
 HOPPER_10_LENGTHS = [425, 405, 380, 405, 485, 491, 394, 487, 415, 435]
-HOPPER_10_RETURNS = [
-    1480.69, 1421.90, 1354.95, 1418.12, 1693.08, 1710.75, 1369.21, 1688.67, 1459.96, 1530.69
-]
-CHEETAH_10_RETURNS = [
-    5797.54, 5768.23, 5804.57, 5633.77, 6007.19, 5819.26, 5710.86, 5847.35, 5815.14, 5887.19
-]
+HOPPER_10_RETURNS = [1480.69, 1421.90, 1354.95, 1418.12, 1693.08, 1710.75, 1369.21, 1688.67, 1459.96, 1530.69]
+CHEETAH_10_RETURNS = [5797.54, 5768.23, 5804.57, 5633.77, 6007.19, 5819.26, 5710.86, 5847.35, 5815.14, 5887.19]
 EXPECTED = {
     HOPPER.format(1): ([425], [1480.69]),
     HOPPER.format(4): (HOPPER_10_LENGTHS[:4], HOPPER_10_RETURNS[:4]),
@@ -135,7 +135,7 @@ def _write_sb_npz(path, lengths, *, T=1000, time_feature=True, returns=None, dro
 
 
 class TestPaperTeacherFiles:
-    """The six stable-baselines teacher files of the paper (../shared/data/teachers)."""
+    """The six stable-baselines teacher files of the paper (found by the ``teacher_dir`` fixture)."""
 
     @pytest.mark.parametrize("name", sorted(EXPECTED))
     def test_episodes_and_returns(self, teacher_dir, name):
@@ -156,10 +156,7 @@ class TestPaperTeacherFiles:
         assert data["step_count"].dtype == torch.int64
         # dense rewards kept: per-episode sums reproduce the recorded returns
         ends = np.cumsum(lengths)
-        sums = [
-            float(data["next", "reward"][a:b].double().sum())
-            for a, b in zip(np.r_[0, ends[:-1]], ends)
-        ]
+        sums = [float(data["next", "reward"][a:b].double().sum()) for a, b in zip(np.r_[0, ends[:-1]], ends)]
         np.testing.assert_allclose(sums, returns, atol=2e-2)
 
     def test_documented_ranges(self, teacher_dir):
@@ -248,9 +245,7 @@ class TestPaperTeacherFiles:
         # raw actions overshoot +-1 by float32 rounding; loaded ones are clamped, not rescaled
         assert np.abs(raw["actions"]).max() > 1.0
         assert data["action"].abs().max().item() == 1.0
-        torch.testing.assert_close(
-            data["action"], torch.from_numpy(raw["actions"]).clamp(-1, 1), atol=0, rtol=0
-        )
+        torch.testing.assert_close(data["action"], torch.from_numpy(raw["actions"]).clamp(-1, 1), atol=0, rtol=0)
 
     def test_load_demonstrations_dispatches_npz(self, teacher_dir):
         data, meta = load_demonstrations(teacher_dir / HOPPER.format(1))
@@ -274,6 +269,9 @@ class TestShippedTeachers:
         check_demonstration_dims(data, observation_dim=obs_dim, action_dim=act_dim)
         # a full-length episode was truncated, a shorter one terminated (the walker fell)
         assert data["next", "truncated"][-1].item() == (steps == 1000)
+        # as the example loads them (time_feature=True): the column is there, nothing changes
+        again, meta = load_demonstrations(SHIPPED_TEACHERS / env, time_feature=True)
+        assert (again == data).all() and meta["time_feature_appended"] is False
 
 
 class TestLoadSBDemonstrations:
@@ -289,9 +287,7 @@ class TestLoadSBDemonstrations:
         assert data["step_count"].squeeze(-1).tolist() == [0, 1, 2, 0, 1]
         assert data["next", "done"].squeeze(-1).tolist() == [False, False, True, False, True]
         # next time column: 1 - (t + 1)/10, also at the episode ends
-        torch.testing.assert_close(
-            data["next", "observation"][:, -1], torch.tensor([0.9, 0.8, 0.7, 0.9, 0.8])
-        )
+        torch.testing.assert_close(data["next", "observation"][:, -1], torch.tensor([0.9, 0.8, 0.7, 0.9, 0.8]))
         assert "env_name" not in meta  # not a SAIL-named file
 
     def test_full_length_episode_is_truncated(self, tmp_path):
@@ -328,9 +324,15 @@ class TestLoadSBDemonstrations:
         _write_sb_npz(path, [6, 2], T=10)
         with pytest.raises(ValueError, match=r"long\.npz: episode 0 has 6 steps.*steps=5"):
             load_sb_demonstrations(path, max_episode_steps=5)
-        # wrong T: the last column no longer matches 1 - t/T
-        with pytest.raises(ValueError, match=r"long\.npz: .*not the time feature"):
-            load_sb_demonstrations(path, max_episode_steps=20, time_feature=True)
+        # wrong T: the last column is the time feature of T = 10, not 20 (in both detecting modes)
+        for time_feature in (None, True):
+            with pytest.raises(
+                ValueError,
+                match=r"long\.npz: the last observation column is the time "
+                r"feature 1 - t/T with T=10, not max_episode_steps=20: pass max_episode_steps=10",
+            ):
+                load_sb_demonstrations(path, max_episode_steps=20, time_feature=time_feature)
+        assert load_sb_demonstrations(path, max_episode_steps=20, time_feature=False).metadata["time_feature"] is False
 
     def test_unreadable_files(self, teacher_dir, tmp_path):
         cut = tmp_path / "cut.npz"
@@ -511,9 +513,10 @@ class TestLoadDemonstrationsErrors:
             torch.save({"format": "torchrl_sail.demonstrations"}, path)
         else:
             _make_td([2]).memmap(path)  # tensordict files without our metadata.json
-        with pytest.raises(ValueError, match=r"old\.pt: not demonstrations; expected .*\.npz.*"
-                           "directory written by save_demonstrations"):
+        with pytest.raises(ValueError, match=r"old\.pt: not demonstrations; expected ") as err:
             load_demonstrations(path)
+        for expected in ("'.npz' file", "directory written by save_demonstrations", "Minari dataset"):
+            assert expected in str(err.value)  # every format it reads, in their registration order
 
     @pytest.mark.parametrize(
         "td, match",
@@ -539,8 +542,16 @@ class TestLoadDemonstrationsErrors:
             ),
             (_make_td([2, 2])[:3], r"the last row is not done"),
         ],
-        ids=["no-action", "no-truncated", "not-flat", "float-done", "reward-shape",
-             "next-obs-shape", "done-flags", "last-not-done"],
+        ids=[
+            "no-action",
+            "no-truncated",
+            "not-flat",
+            "float-done",
+            "reward-shape",
+            "next-obs-shape",
+            "done-flags",
+            "last-not-done",
+        ],
     )
     def test_invalid_content(self, tmp_path, td, match):
         path = _write_raw(tmp_path / "bad", td)
@@ -586,3 +597,224 @@ class TestCheckDemonstrationDims:
         env.action_spec = Bounded(-1.0, 1.0, shape=(3,))
         with pytest.raises(ValueError, match=r"6 dims, env action has 3"):
             check_demonstration_dims(demos, env=env)
+
+
+def _strip_time_column(src: Path, dst: Path) -> None:
+    """A copy of an authors' file recorded without the time feature: obs (and next_obs) minus the last column."""
+    arrays = _raw(src.parent, src.name)
+    for key in ("obs", "next_obs"):
+        if key in arrays:
+            arrays[key] = np.ascontiguousarray(arrays[key][:, :-1])
+    np.savez(dst, **arrays)
+
+
+def _assert_close_td(data, expected, atol=1e-6):
+    assert set(data.keys(True, True)) == set(expected.keys(True, True))
+    for key in expected.keys(True, True):
+        assert data[key].dtype == expected[key].dtype, key
+        assert data[key].shape == expected[key].shape, key
+        if data[key].is_floating_point():
+            torch.testing.assert_close(data[key], expected[key], atol=atol, rtol=0, msg=str(key))
+        else:
+            assert torch.equal(data[key], expected[key]), key
+
+
+class TestTimeFeatureComputed:
+    """Teachers recorded without the time-feature column get it computed, in every format."""
+
+    @pytest.mark.parametrize("name", [HOPPER.format(4), CHEETAH.format(1)])
+    def test_authors_file_without_the_column(self, teacher_dir, tmp_path, name):
+        original = _loaded(teacher_dir, name)
+        stripped = tmp_path / name  # the same name: the same env_name/nominal_score metadata
+        _strip_time_column(teacher_dir / name, stripped)
+
+        # as the example loads a teacher: the column is appended, the result is the original's
+        data, meta = load_demonstrations(stripped, max_episode_steps=1000, time_feature=True)
+        _assert_close_td(data, original.data, atol=1e-6)
+        assert meta["time_feature"] is True and meta["time_feature_appended"] is True
+        assert meta["observation_dim"] == original.metadata["observation_dim"]
+        assert meta["episode_returns"] == original.metadata["episode_returns"]
+        check_demonstration_dims(data, observation_dim=DIMS["Hopper" if "Hopper" in name else "HalfCheetah"][0])
+
+        # detected as absent, and left alone, without time_feature=True
+        for time_feature in (None, False):
+            data, meta = load_sb_demonstrations(stripped, time_feature=time_feature)
+            assert meta["time_feature"] is False and meta["time_feature_appended"] is False
+            assert torch.equal(data["observation"], original.data["observation"][:, :-1])
+
+        # a file that has the column is left as it is
+        data, meta = load_demonstrations(teacher_dir / name, time_feature=True)
+        assert (data == original.data).all() and meta["time_feature_appended"] is False
+
+    @settings(max_examples=10, deadline=None)
+    @given(lengths=st.lists(st.integers(1, 6), min_size=1, max_size=4), T=st.integers(6, 9))
+    def test_synthetic_npz_with_and_without_the_column(self, tmp_path_factory, lengths, T):
+        folder = tmp_path_factory.mktemp("tf")
+        _write_sb_npz(folder / "with.npz", lengths, T=T)
+        _write_sb_npz(folder / "without.npz", lengths, T=T, time_feature=False)
+        expected, _ = load_sb_demonstrations(folder / "with.npz", max_episode_steps=T)
+        data, meta = load_sb_demonstrations(folder / "without.npz", max_episode_steps=T, time_feature=True)
+        _assert_close_td(data, expected)
+        assert meta["time_feature_appended"] is True
+
+    def test_folder_without_the_column(self, tmp_path):
+        with_column, _ = load_demonstrations(SHIPPED_TEACHERS / "Hopper-v4")
+        plain = with_column.clone()
+        for key in ("observation", ("next", "observation")):
+            plain[key] = plain[key][:, :-1].contiguous()
+        path = save_demonstrations(tmp_path / "plain", plain)
+        data, meta = load_demonstrations(path, time_feature=True)
+        _assert_close_td(data, with_column)
+        assert meta["time_feature"] is True and meta["time_feature_appended"] is True
+        # without step_count, t is counted from the done flags
+        path = save_demonstrations(tmp_path / "plain2", plain.exclude("step_count"))
+        data, _ = load_demonstrations(path, time_feature=True)
+        _assert_close_td(data, with_column.exclude("step_count"))
+        # by default a folder loads as saved
+        data, meta = load_demonstrations(path)
+        assert data["observation"].shape[-1] == 11 and "time_feature_appended" not in meta
+
+    def test_folder_with_the_column_of_another_limit(self, tmp_path):
+        path = save_demonstrations(tmp_path / "d", load_demonstrations(SHIPPED_TEACHERS / "Hopper-v4").data)
+        with pytest.raises(
+            ValueError,
+            match=r"d: the last observation column is the time feature 1 - t/T "
+            r"with T=1000, not max_episode_steps=500",
+        ):
+            load_demonstrations(path, max_episode_steps=500, time_feature=True)
+
+
+def _nonfinite_npz(path: Path, key: str, row: int, value: float) -> None:
+    _write_sb_npz(path, [4, 3])
+    with np.load(path, allow_pickle=True) as f:
+        arrays = {k: f[k] for k in f.files}
+    arrays[key] = arrays[key].copy()
+    arrays[key][row] = value
+    np.savez(path, **arrays)
+
+
+class TestNonFinite:
+    """A NaN or infinity is refused by every format, naming the file, the key and the row."""
+
+    @pytest.mark.parametrize(
+        "key, row, value, match",
+        [
+            ("obs", 5, np.nan, r"teacher\.npz: 'obs' has a non-finite value \(nan\) at row 5, column 0"),
+            ("obs", 0, np.inf, r"teacher\.npz: 'obs' has a non-finite value \(inf\) at row 0"),
+            ("actions", 2, -np.inf, r"teacher\.npz: 'actions' has a non-finite value \(-inf\) at row 2"),
+            ("rewards", 6, np.nan, r"teacher\.npz: 'rewards' has a non-finite value \(nan\) at row 6"),
+            (
+                "episode_returns",
+                1,
+                np.nan,
+                r"teacher\.npz: 'episode_returns' has a non-finite value \(nan\) "
+                r"at row 1",
+            ),
+        ],
+    )
+    def test_npz(self, tmp_path, key, row, value, match):
+        path = tmp_path / "teacher.npz"
+        _nonfinite_npz(path, key, row, value)
+        for time_feature in (None, True, False):
+            with pytest.raises(ValueError, match=match):
+                load_demonstrations(path, time_feature=time_feature)
+
+    def test_nan_in_an_authors_file(self, teacher_dir, tmp_path):
+        arrays = _raw(teacher_dir, HOPPER.format(1))
+        arrays["obs"] = arrays["obs"].copy()
+        arrays["obs"][123, 4] = np.nan
+        path = tmp_path / HOPPER.format(1)
+        np.savez(path, **arrays)
+        with pytest.raises(
+            ValueError,
+            match=rf"{HOPPER.format(1)}: 'obs' has a non-finite value \(nan\) at "
+            r"row 123, column 4",
+        ):
+            load_demonstrations(path, time_feature=True)
+
+    @pytest.mark.parametrize("key", ["observation", ("next", "observation"), ("next", "reward"), "action"])
+    def test_folder(self, tmp_path, key):
+        td = _make_td([2, 2])
+        td[key][3] = float("nan")
+        path = _write_raw(tmp_path / "bad", td)
+        with pytest.raises(ValueError, match=rf"bad: {re.escape(repr(key))} has a non-finite value \(nan\) at row 3"):
+            load_demonstrations(path)
+        with pytest.raises(ValueError, match=r"data to save to .*: .* non-finite value \(nan\) at row 3"):
+            save_demonstrations(tmp_path / "out", td)
+        assert not (tmp_path / "out").exists()
+
+    def test_check_finite_and_check_returns(self):
+        check_finite({"flag": np.array([True]), "steps": torch.arange(3)}, "x")  # not floats: skipped
+        with pytest.raises(ValueError, match=r"x: 'r' has a non-finite value \(nan\) at episode 1"):
+            check_finite({"r": np.array([0.0, np.nan])}, "x", row_name="episode")
+        check_returns([1.0 + RETURNS_ATOL / 2], [1.0], [1], "x")  # within the tolerance
+        with pytest.raises(ValueError, match=r"x: 'recorded return' has a non-finite value \(inf\) at episode 0"):
+            check_returns([np.inf], [1.0], [1], "x")
+        with pytest.raises(ValueError, match="episode 0 has recorded return 1.010000 but its rewards sum to 1.000000"):
+            check_returns([1.01], [1.0], [1], "x")
+
+
+class TestEnvKwargHints:
+    """check_demonstration_dims names the gymnasium.make kwarg (config key env.kwargs) a mismatch points to."""
+
+    @staticmethod
+    def _demos(obs_dim, act_dim=8):
+        return TensorDict({"observation": torch.zeros(3, obs_dim), "action": torch.zeros(3, act_dim)}, [3])
+
+    def test_ant_contact_forces(self):
+        # Ant-v4: 27 dims, 111 with use_contact_forces=True; +1 each for the time feature
+        with pytest.raises(ValueError) as err:
+            check_demonstration_dims(self._demos(112), observation_dim=28, env_name="Ant-v4", source="ant.npz")
+        msg = str(err.value)
+        assert msg.startswith("teacher data (ant.npz): 'observation' has 112 dims, env has 28: an env kwarg")
+        assert "use_contact_forces=True" in msg and "env.kwargs.use_contact_forces=true" in msg
+        with pytest.raises(
+            ValueError,
+            match=r"probably has it and the teacher did not; drop use_contact_forces "
+            r"from env.kwargs",
+        ):
+            check_demonstration_dims(self._demos(28), observation_dim=112, env_name="Ant-v4")
+
+    def test_env_name_from_a_torchrl_env(self):
+        env = SimpleNamespace(
+            observation_spec=Composite(observation=Unbounded(shape=(28,))),
+            action_spec=Bounded(-1.0, 1.0, shape=(8,)),
+            base_env=SimpleNamespace(env_name="Ant-v4"),
+        )
+        with pytest.raises(ValueError, match=r"env\.kwargs\.use_contact_forces=true"):
+            check_demonstration_dims(self._demos(112), env=env)
+
+    def test_one_dim_names_time_feature_first_then_the_kwarg(self):
+        with pytest.raises(ValueError) as err:
+            check_demonstration_dims(self._demos(13, 3), observation_dim=12, env_name="Hopper-v4")
+        msg = str(err.value)
+        assert "enable TimeFeature" in msg
+        assert msg.index("TimeFeature") < msg.index("exclude_current_positions_from_observation=False")
+        assert "env.kwargs.exclude_current_positions_from_observation=false" in msg
+
+    def test_what_a_torchrl_env_says_about_the_time_feature(self):
+        from torchrl_sail import make_sail_env
+
+        with_feature, without = make_sail_env("Hopper-v4"), make_sail_env("Hopper-v4", time_feature=False)
+        # one column too many for an env that already appends the feature: not "enable TimeFeature"
+        with pytest.raises(ValueError) as err:
+            check_demonstration_dims(self._demos(13, 3), env=with_feature)
+        assert "TimeFeature" not in str(err.value)
+        assert "env.kwargs.exclude_current_positions_from_observation=false" in str(err.value)
+        with pytest.raises(ValueError, match=r"12 dims, env has 11: enable TimeFeature"):
+            check_demonstration_dims(self._demos(12, 3), env=without)
+        with pytest.raises(ValueError, match=r"11 dims, env has 12: disable TimeFeature .* time_feature=True"):
+            check_demonstration_dims(self._demos(11, 3), env=with_feature)
+        with pytest.raises(ValueError) as err:  # one column too few for an env without the feature
+            check_demonstration_dims(self._demos(10, 3), env=without)
+        assert "TimeFeature" not in str(err.value) and "drop exclude_current_positions_from_observation" in str(
+            err.value
+        )
+
+    def test_unknown_difference_mentions_env_kwargs(self):
+        with pytest.raises(ValueError) as err:
+            check_demonstration_dims(self._demos(40), observation_dim=28, env_name="Ant-v4")
+        msg = str(err.value)
+        assert "different env" in msg and "env.kwargs" in msg and "TimeFeature" not in msg
+        with pytest.raises(ValueError, match="env.kwargs"):  # no env id at all
+            check_demonstration_dims(self._demos(40), observation_dim=28)

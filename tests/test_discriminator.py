@@ -33,9 +33,7 @@ def _np_stats(x: np.ndarray, eps: float = 1e-2, min_var: float = 1e-2):
 
 def _linear_disc(weight, bias=0.0, *, obs_dim=3, act_dim=1, normalize=False):
     """A discriminator whose logit is the affine map ``weight @ [obs, act] + bias``."""
-    disc = Discriminator(
-        obs_dim, act_dim, num_cells=(), normalize_observations=normalize
-    )
+    disc = Discriminator(obs_dim, act_dim, num_cells=(), normalize_observations=normalize)
     with torch.no_grad():
         disc.net.mlp[0].weight.copy_(torch.tensor([weight], dtype=torch.float32))
         disc.net.mlp[0].bias.fill_(bias)
@@ -75,12 +73,8 @@ class TestRunningObsNorm:
 
     def test_matches_numpy_over_several_batches(self):
         norm = RunningObsNorm(3)
-        a = torch.randn(7, 3) * torch.tensor([1.0, 5.0, 0.01]) + torch.tensor(
-            [2.0, -1.0, 1.0]
-        )
-        b = (
-            torch.randn(2, 5, 3) * torch.tensor([1.0, 1.0, 0.01]) + 1.0
-        )  # any leading dims
+        a = torch.randn(7, 3) * torch.tensor([1.0, 5.0, 0.01]) + torch.tensor([2.0, -1.0, 1.0])
+        b = torch.randn(2, 5, 3) * torch.tensor([1.0, 1.0, 0.01]) + 1.0  # any leading dims
         norm.update(a)
         norm.update(b)
         allx = np.concatenate([a.numpy(), b.reshape(-1, 3).numpy()])
@@ -107,12 +101,8 @@ class TestRunningObsNorm:
         assert 0 < raw_var < 1e-2
         assert norm.std.item() == pytest.approx(0.1, abs=1e-15)
         # mean and std are cast to x's dtype (float32) first, as the authors do
-        assert norm(torch.tensor([[3.0]])).item() == pytest.approx(
-            (3.0 - 300 / 100.01) / 0.1, abs=1e-5
-        )
-        assert norm(torch.tensor([[4.0]])).item() == pytest.approx(
-            (4.0 - 300 / 100.01) / 0.1, rel=1e-6
-        )
+        assert norm(torch.tensor([[3.0]])).item() == pytest.approx((3.0 - 300 / 100.01) / 0.1, abs=1e-5)
+        assert norm(torch.tensor([[4.0]])).item() == pytest.approx((4.0 - 300 / 100.01) / 0.1, rel=1e-6)
 
     def test_forward_does_not_update(self):
         norm = RunningObsNorm(2)
@@ -137,18 +127,14 @@ class TestDiscriminatorNet:
             (256, 256),
             (256, 1),
         ]
-        assert [type(m) for m in net.mlp if not isinstance(m, nn.Linear)] == [
-            nn.Tanh
-        ] * 2
+        assert [type(m) for m in net.mlp if not isinstance(m, nn.Linear)] == [nn.Tanh] * 2
         for m in linears:
             assert torch.count_nonzero(m.bias) == 0
             bound = math.sqrt(6.0 / (m.in_features + m.out_features))
             assert m.weight.abs().max() <= bound
             # uniform(-b, b) has std b/sqrt(3); PyTorch's default would be much smaller
             if m.weight.numel() > 1000:
-                assert m.weight.std().item() == pytest.approx(
-                    bound / math.sqrt(3), rel=0.05
-                )
+                assert m.weight.std().item() == pytest.approx(bound / math.sqrt(3), rel=0.05)
 
     def test_forward_by_hand(self):
         net = DiscriminatorNet(3, 2, num_cells=(4,))
@@ -254,13 +240,7 @@ class TestDiscriminatorLoss:
         softplus = lambda z: math.log1p(math.exp(z))  # noqa: E731
         sig = lambda z: 1 / (1 + math.exp(-z))  # noqa: E731
         bce = sum(softplus(-z) for z in lt) / 3 + sum(softplus(z) for z in la) / 2
-        ent = (
-            sum(
-                -sig(z) * math.log(sig(z)) - (1 - sig(z)) * math.log(1 - sig(z))
-                for z in logits
-            )
-            / 5
-        )
+        ent = sum(-sig(z) * math.log(sig(z)) - (1 - sig(z)) * math.log(1 - sig(z)) for z in logits) / 5
         assert out["loss_discriminator"].item() == pytest.approx(bce, rel=1e-6)
         assert out["entropy"].item() == pytest.approx(ent, rel=1e-5)
         assert out["loss_entropy"].item() == pytest.approx(-0.01 * ent, rel=1e-5)
@@ -271,12 +251,8 @@ class TestDiscriminatorLoss:
         assert out["accuracy_agent"].item() == pytest.approx(1 / 2)
         assert out["d_teacher"].item() == pytest.approx(sum(map(sig, lt)) / 3, rel=1e-6)
         assert out["d_agent"].item() == pytest.approx(sum(map(sig, la)) / 2, rel=1e-6)
-        assert out["reward_teacher"].item() == pytest.approx(
-            sum(map(softplus, lt)) / 3, rel=1e-6
-        )
-        assert out["reward_agent"].item() == pytest.approx(
-            sum(map(softplus, la)) / 2, rel=1e-6
-        )
+        assert out["reward_teacher"].item() == pytest.approx(sum(map(softplus, lt)) / 3, rel=1e-6)
+        assert out["reward_agent"].item() == pytest.approx(sum(map(softplus, la)) / 2, rel=1e-6)
         for k in loss_fn.out_keys:
             assert out[k].shape == ()
         for k in ("accuracy_teacher", "entropy", "grad_penalty", "reward_agent"):
@@ -284,9 +260,7 @@ class TestDiscriminatorLoss:
 
     def test_unit_gradient_gives_zero_penalty(self):
         disc = _linear_disc([0.6, 0.0, 0.0, 0.8])  # |w| = 1
-        out = DiscriminatorLoss(disc)(
-            _tagged(torch.randn(6, 3), torch.rand(6, 1), [1, 0, 1, 0, 1, 0])
-        )
+        out = DiscriminatorLoss(disc)(_tagged(torch.randn(6, 3), torch.rand(6, 1), [1, 0, 1, 0, 1, 0]))
         assert out["grad_penalty"].item() == pytest.approx(0.0, abs=1e-12)
 
     def test_against_reference(self):
@@ -299,9 +273,7 @@ class TestDiscriminatorLoss:
         loss_fn = DiscriminatorLoss(disc, entropy_coef=0.05, gp_coef=3.0)
         obs = torch.randn(10, 3) * 2 + 1
         act = torch.rand(10, 2) * 2 - 1
-        tag = torch.tensor(
-            [1, 0, 0, 1, 1, 0, 1, 1, 0, 1], dtype=torch.bool
-        )  # 6 teacher, 4 agent
+        tag = torch.tensor([1, 0, 0, 1, 1, 0, 1, 1, 0, 1], dtype=torch.bool)  # 6 teacher, 4 agent
         torch.manual_seed(123)
         out = loss_fn(_tagged(obs, act, tag))
         total = sum(v for k, v in out.items() if k.startswith("loss_"))
@@ -315,8 +287,7 @@ class TestDiscriminatorLoss:
         w2, b2 = disc.net.mlp[2].weight, disc.net.mlp[2].bias
         x = torch.cat(
             [
-                (obs - torch.tensor(mean, dtype=torch.float32))
-                / torch.tensor(std, dtype=torch.float32),
+                (obs - torch.tensor(mean, dtype=torch.float32)) / torch.tensor(std, dtype=torch.float32),
                 act,
             ],
             -1,
@@ -373,9 +344,7 @@ class TestDiscriminatorLoss:
         norm = disc.net.obs_norm
         assert norm.count.item() == pytest.approx(6.01)
         torch.testing.assert_close(norm.sum, td["observation"].double().sum(0))
-        torch.testing.assert_close(
-            norm.sumsq, 0.01 + td["observation"].double().square().sum(0)
-        )
+        torch.testing.assert_close(norm.sumsq, 0.01 + td["observation"].double().square().sum(0))
         DiscriminatorLoss(disc, update_obs_norm=False)(td)
         assert norm.count.item() == pytest.approx(6.01)
 
@@ -402,12 +371,8 @@ class TestDiscriminatorLoss:
         tag[0] = True
         obs, act = torch.randn(2, 4, 3), torch.rand(2, 4, 1)
         out = loss_fn(_tagged(obs, act, tag))
-        flat = loss_fn.eval()(
-            _tagged(obs.reshape(8, 3), act.reshape(8, 1), tag.reshape(8))
-        )
-        torch.testing.assert_close(
-            out["loss_discriminator"], flat["loss_discriminator"]
-        )
+        flat = loss_fn.eval()(_tagged(obs.reshape(8, 3), act.reshape(8, 1), tag.reshape(8)))
+        torch.testing.assert_close(out["loss_discriminator"], flat["loss_discriminator"])
 
     def test_schedulable_coefficients(self):
         disc = _linear_disc([3.0, 4.0, 0.0, 0.0])
@@ -442,9 +407,7 @@ class TestDiscriminatorLoss:
         loss_fn.set_keys(is_teacher=None)
         assert loss_fn.tensor_keys.is_teacher == "is_teacher"
         # a plain TensorDictModule around a DiscriminatorNet works too
-        plain = TensorDictModule(
-            DiscriminatorNet(3, 1, num_cells=(4,)), in_keys=["o", "a"], out_keys=["l"]
-        )
+        plain = TensorDictModule(DiscriminatorNet(3, 1, num_cells=(4,)), in_keys=["o", "a"], out_keys=["l"])
         loss_fn = DiscriminatorLoss(plain)
         assert loss_fn.in_keys == ["o", "a", "is_teacher"]
         out = loss_fn(o=torch.randn(4, 3), a=torch.rand(4, 1), is_teacher=td["source", "teacher"])
@@ -473,9 +436,7 @@ class TestDiscriminatorLoss:
         w = disc.net.mlp[0].weight
         bound = math.sqrt(6.0 / (4 + 64))
         assert w.abs().max() <= bound and w.abs().max() > 0.8 * bound
-        assert all(
-            torch.count_nonzero(m.bias) == 0 for m in (disc.net.mlp[0], disc.net.mlp[2])
-        )
+        assert all(torch.count_nonzero(m.bias) == 0 for m in (disc.net.mlp[0], disc.net.mlp[2]))
         assert disc.net.obs_norm.count.item() == pytest.approx(4.01)
 
     def test_separates_toy_distributions(self):
@@ -493,11 +454,7 @@ class TestDiscriminatorLoss:
 
         for _ in range(200):
             out = loss_fn(batch())
-            loss = (
-                out["loss_discriminator"]
-                + out["loss_entropy"]
-                + out["loss_gradient_penalty"]
-            )
+            loss = out["loss_discriminator"] + out["loss_entropy"] + out["loss_gradient_penalty"]
             optim.zero_grad()
             loss.backward()
             optim.step()

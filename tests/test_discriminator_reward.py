@@ -48,9 +48,7 @@ def _softplus_logit(disc, td):
 
 def _mock_env(out_key="imitation_reward"):
     disc = Discriminator(OBS_DIM, ACT_DIM, num_cells=(8,))
-    return TransformedEnv(
-        ContinuousActionVecMockEnv(), DiscriminatorReward(disc, out_key=out_key)
-    )
+    return TransformedEnv(ContinuousActionVecMockEnv(), DiscriminatorReward(disc, out_key=out_key))
 
 
 class TestDiscriminatorReward:
@@ -87,9 +85,7 @@ class TestDiscriminatorReward:
     def test_transform_no_env(self):
         # reward = softplus(logit) = -log(1 - D), by hand
         logits = torch.tensor([-20.0, -1.0, 0.0, 1.0, 5.0, 30.0, 200.0])
-        td = TensorDict(
-            observation=logits.unsqueeze(-1), action=torch.zeros(7, 1), batch_size=[7]
-        )
+        td = TensorDict(observation=logits.unsqueeze(-1), action=torch.zeros(7, 1), batch_size=[7])
         out = DiscriminatorReward(_linear_disc([1.0, 0.0]))(td)
         r = out["next", "reward"]
         assert r.shape == (7, 1)
@@ -101,9 +97,7 @@ class TestDiscriminatorReward:
         assert torch.isinf(naive[-1]) and r[-1].item() == pytest.approx(200.0)
         finite = torch.isfinite(naive)
         assert finite.sum() == 5  # logits -20 .. 5
-        torch.testing.assert_close(
-            r.squeeze(-1)[finite], naive[finite], atol=1e-5, rtol=1e-5
-        )
+        torch.testing.assert_close(r.squeeze(-1)[finite], naive[finite], atol=1e-5, rtol=1e-5)
 
     def test_transform_compose(self):
         disc = Discriminator(3, 1, num_cells=(8,))
@@ -148,9 +142,7 @@ class TestDiscriminatorReward:
         # no inverse: the storage never receives the imitation reward or the logit
         data = _transitions(10)
         rb = TensorDictReplayBuffer(storage=LazyTensorStorage(10), batch_size=4)
-        rb.append_transform(
-            DiscriminatorReward(Discriminator(3, 1, num_cells=(8,)), keep_logit=True)
-        )
+        rb.append_transform(DiscriminatorReward(Discriminator(3, 1, num_cells=(8,)), keep_logit=True))
         rb.extend(data)
         rb.sample()
         stored = rb.storage[:]
@@ -166,15 +158,17 @@ class TestDiscriminatorReward:
         assert torch.equal(out["d_logit"], logit.detach())
         assert torch.equal(out["next", "reward"], F.softplus(logit).detach())
         p = torch.sigmoid(logit)
-        torch.testing.assert_close(
-            out["next", "reward"], -torch.log(1 - p).detach(), atol=1e-5, rtol=1e-5
-        )
+        torch.testing.assert_close(out["next", "reward"], -torch.log(1 - p).detach(), atol=1e-5, rtol=1e-5)
 
     def test_kinds_coef_and_mode_against_hand_values(self):
         # logit = 2 * obs - 1 * act + 0.5: obs 1, act 0.5 -> 2.0; obs -1, act 0 -> -1.5
         disc = _linear_disc([2.0, -1.0], bias=0.5)
-        td = TensorDict(observation=torch.tensor([[1.0], [-1.0]]), action=torch.tensor([[0.5], [0.0]]),
-                        next=TensorDict(reward=torch.tensor([[10.0], [20.0]]), batch_size=[2]), batch_size=[2])
+        td = TensorDict(
+            observation=torch.tensor([[1.0], [-1.0]]),
+            action=torch.tensor([[0.5], [0.0]]),
+            next=TensorDict(reward=torch.tensor([[10.0], [20.0]]), batch_size=[2]),
+            batch_size=[2],
+        )
         logit = torch.tensor([[2.0], [-1.5]])
         gail = DiscriminatorReward(disc)(td.clone())["next", "reward"]
         torch.testing.assert_close(gail, torch.log1p(torch.exp(logit)))  # -log(1 - sigmoid)
@@ -189,8 +183,12 @@ class TestDiscriminatorReward:
     def test_clip_against_hand_values(self):
         # logit = obs: D = sigmoid(6) = 0.9975 -> 0.99, sigmoid(-6) = 0.0025 -> 0.01, sigmoid(0) = 0.5 kept
         disc = _linear_disc([1.0, 0.0])
-        td = TensorDict(observation=torch.tensor([[6.0], [-6.0], [0.0]]), action=torch.zeros(3, 1),
-                        next=TensorDict(reward=torch.zeros(3, 1), batch_size=[3]), batch_size=[3])
+        td = TensorDict(
+            observation=torch.tensor([[6.0], [-6.0], [0.0]]),
+            action=torch.zeros(3, 1),
+            next=TensorDict(reward=torch.zeros(3, 1), batch_size=[3]),
+            batch_size=[3],
+        )
         gail = DiscriminatorReward(disc, clip=(0.01, 0.99))(td.clone())["next", "reward"]
         torch.testing.assert_close(gail, torch.tensor([[-math.log(0.01)], [-math.log(0.99)], [math.log(2.0)]]))
         airl = DiscriminatorReward(disc, kind="airl", clip=(0.01, 0.99))(td.clone())["next", "reward"]
@@ -207,9 +205,15 @@ class TestDiscriminatorReward:
         bonus = 2.0 * F.softplus(disc.net(rollout["observation"], rollout["action"])).detach()
         torch.testing.assert_close(rollout["next", "reward"], dense + bonus)
 
-    @pytest.mark.parametrize("kwargs, message", [({"kind": "wgan"}, "kind must be"), ({"mode": "mix"}, "mode must be"),
-                                                 ({"clip": (0.0, 0.99)}, "clip must be"),
-                                                 ({"clip": (0.9, 0.1)}, "clip must be")])
+    @pytest.mark.parametrize(
+        "kwargs, message",
+        [
+            ({"kind": "wgan"}, "kind must be"),
+            ({"mode": "mix"}, "mode must be"),
+            ({"clip": (0.0, 0.99)}, "clip must be"),
+            ({"clip": (0.9, 0.1)}, "clip must be"),
+        ],
+    )
     def test_bad_kind_or_mode(self, kwargs, message):
         with pytest.raises(ValueError, match=message):
             DiscriminatorReward(Discriminator(3, 1, num_cells=(4,)), **kwargs)
@@ -330,11 +334,7 @@ class TestDiscriminatorReward:
         r0 = t(td.clone())["next", "reward"]
         optim = torch.optim.Adam(disc.parameters(), lr=1e-2)
         out = loss_fn(td)
-        (
-            out["loss_discriminator"]
-            + out["loss_entropy"]
-            + out["loss_gradient_penalty"]
-        ).backward()
+        (out["loss_discriminator"] + out["loss_entropy"] + out["loss_gradient_penalty"]).backward()
         optim.step()
         r1 = t(td.clone())["next", "reward"]
         assert not torch.allclose(r0, r1)

@@ -1,11 +1,12 @@
 """DivergenceCheck: non-finite losses and parameters stop a run, naming the quantity and the frame."""
+
 from __future__ import annotations
 
 import json
 
 import pytest
 import torch
-from example_runner import run, saved, scalar
+from example_runner import read_scalar, run, saved
 from torch import nn
 
 from torchrl_sail import DivergenceCheck, DivergenceError
@@ -45,14 +46,20 @@ def test_nan_loss_is_named_with_the_frame():
     assert err.value.quantities == ["d/loss_discriminator"] and err.value.frame == 12000
 
 
-@pytest.mark.parametrize("name, value", [("critic.2.weight", float("inf")), ("critic.0.bias", float("nan")),
-                                         ("norm.running_var", float("nan"))])
+@pytest.mark.parametrize(
+    "name, value",
+    [("critic.2.weight", float("inf")), ("critic.0.bias", float("nan")), ("norm.running_var", float("nan"))],
+)
 def test_non_finite_parameter_or_buffer_is_named(name, value):
     modules = nets()
     check = DivergenceCheck(modules)
     with torch.no_grad():
-        dict([*modules[name.split(".")[0]].named_parameters(prefix=name.split(".")[0]),
-              *modules[name.split(".")[0]].named_buffers(prefix=name.split(".")[0])])[name].view(-1)[0] = value
+        dict(
+            [
+                *modules[name.split(".")[0]].named_parameters(prefix=name.split(".")[0]),
+                *modules[name.split(".")[0]].named_buffers(prefix=name.split(".")[0]),
+            ]
+        )[name].view(-1)[0] = value
     with pytest.raises(DivergenceError, match=rf"at frame 7: {name}") as err:
         check({"sail/loss_qvalue": torch.tensor(0.3)}, frame=7)
     assert err.value.quantities == [name]
@@ -78,11 +85,20 @@ def test_rejects_a_non_module():
         DivergenceCheck({"critic": torch.zeros(2)})
 
 
-TINY = ["env=Hopper-v4", "collector.init_random_frames=1000", "collector.frames_per_batch=500",
-        "optim.updates_per_train=50", "optim.discriminator.steps=2", "eval.every_frames=0",
-        "logger.log_every_frames=500", "logger.backends=[csv]", "checkpoint.every_frames=1000"]
+TINY = [
+    "env=Hopper-v4",
+    "collector.init_random_frames=1000",
+    "collector.frames_per_batch=500",
+    "optim.updates_per_train=50",
+    "optim.discriminator.steps=2",
+    "eval.every_frames=0",
+    "logger.log_every_frames=500",
+    "logger.backends=[csv]",
+    "checkpoint.every_frames=1000",
+]
 
 
+@pytest.mark.slow
 def test_diverging_run_stops_keeps_its_checkpoint_and_resumes_with_other_settings(tmp_path):
     """A NaN injected through an absurd learning rate (1e12) at the continuation of a healthy run."""
     run_dir = tmp_path / "run"
@@ -95,7 +111,7 @@ def test_diverging_run_stops_keeps_its_checkpoint_and_resumes_with_other_setting
     assert f"last good checkpoint ({run_dir / 'checkpoint'}, frame 1500)" in proc.stderr
     # nothing non-finite was logged or saved: the checkpoint is the healthy run's, byte for byte
     assert (run_dir / "checkpoint" / "manifest.json").read_bytes() == manifest
-    assert [frame for frame, _ in scalar(run_dir, "sail/loss_qvalue")][-1] == 1500
+    assert [frame for frame, _ in read_scalar(run_dir, "sail/loss_qvalue")][-1] == 1500
     assert not (run_dir / "summary.json").exists()  # unfinished: no summary of its first 1500 frames
     state = saved(run_dir, "run", "loss")
     assert state["run"]["frames"] == 1500
@@ -105,4 +121,4 @@ def test_diverging_run_stops_keeps_its_checkpoint_and_resumes_with_other_setting
     run(run_dir, "collector.total_frames=2500", "resume=true", *TINY)
     summary = json.loads((run_dir / "summary.json").read_text())
     assert summary["frames"] == 2500 and summary["gradient_steps"] == 100
-    assert all(value == value and abs(value) < 1e6 for _, value in scalar(run_dir, "sail/loss_qvalue"))
+    assert all(value == value and abs(value) < 1e6 for _, value in read_scalar(run_dir, "sail/loss_qvalue"))

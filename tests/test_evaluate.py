@@ -1,4 +1,5 @@
 """examples/evaluate.py and videos: a run's checkpoint evaluated, a video written and decoded."""
+
 from __future__ import annotations
 
 import ctypes.util
@@ -8,7 +9,7 @@ import os
 import sys
 
 import pytest
-from example_runner import evaluate, REPO, run
+from example_runner import REPO, evaluate, run
 
 imageio = pytest.importorskip("imageio.v3", reason="videos need imageio (pip install -e '.[video]')")
 pytest.importorskip("imageio_ffmpeg", reason="MP4 videos need imageio-ffmpeg (pip install -e '.[video]')")
@@ -20,9 +21,19 @@ EGL = {"MUJOCO_GL": "egl"}
 def trained(tmp_path_factory):
     """2000 frames of SAIL on Hopper with the shipped teacher: one evaluation and one video, at the end."""
     run_dir = tmp_path_factory.mktemp("evaluate") / "run"
-    run(run_dir, "env=Hopper-v4", "collector.total_frames=2000", "collector.init_random_frames=1000",
-        "optim.updates_per_train=50", "optim.discriminator.steps=2", "eval.every_frames=2000", "eval.episodes=2",
-        "eval.video_every_frames=2000", "logger.backends=[csv]", env=EGL)
+    run(
+        run_dir,
+        "env=Hopper-v4",
+        "collector.total_frames=2000",
+        "collector.init_random_frames=1000",
+        "optim.updates_per_train=50",
+        "optim.discriminator.steps=2",
+        "eval.every_frames=2000",
+        "eval.episodes=2",
+        "eval.video_every_frames=2000",
+        "logger.backends=[csv]",
+        env=EGL,
+    )
     return run_dir
 
 
@@ -62,8 +73,9 @@ def test_evaluate_writes_stats_and_a_video_that_decodes(trained):
 @pytest.mark.skipif(ctypes.util.find_library("OSMesa") is not None, reason="OSMesa is installed here")
 def test_missing_gl_library_names_the_variable_and_the_package(trained, tmp_path):
     # MuJoCo loads the MUJOCO_GL backend on import (TorchRL imports MuJoCo): checked before that
-    proc = evaluate(f"run_dir={trained}", "episodes=1", f"out={tmp_path / 'e.json'}",
-                    env={"MUJOCO_GL": "osmesa"}, check=False)
+    proc = evaluate(
+        f"run_dir={trained}", "episodes=1", f"out={tmp_path / 'e.json'}", env={"MUJOCO_GL": "osmesa"}, check=False
+    )
     assert proc.returncode != 0 and "MuJoCo cannot load MUJOCO_GL='osmesa'" in proc.stderr
     assert "apt-get install libosmesa6" in proc.stderr and "MUJOCO_GL=egl" in proc.stderr
     assert not (tmp_path / "e.json").exists()
@@ -71,8 +83,14 @@ def test_missing_gl_library_names_the_variable_and_the_package(trained, tmp_path
 
 @pytest.mark.skipif(bool(os.environ.get("DISPLAY")), reason="a display is available: glfw can render")
 def test_unusable_gl_backend_fails_before_anything_is_written(trained, tmp_path):
-    proc = evaluate(f"run_dir={trained}", "episodes=1", "video=true", f"out={tmp_path / 'e.json'}",
-                    env={"MUJOCO_GL": "glfw"}, check=False)
+    proc = evaluate(
+        f"run_dir={trained}",
+        "episodes=1",
+        "video=true",
+        f"out={tmp_path / 'e.json'}",
+        env={"MUJOCO_GL": "glfw"},
+        check=False,
+    )
     assert proc.returncode != 0 and "Cannot render Hopper-v4 with MUJOCO_GL='glfw'" in proc.stderr
     assert "apt-get install libegl1" in proc.stderr
     assert not (tmp_path / "e.json").exists()  # nothing half-written
@@ -94,8 +112,16 @@ def test_evaluate_exports_the_agents_episodes_to_minari(trained, tmp_path):
     from torchrl_sail import load_demonstrations
 
     datasets = {"MINARI_DATASETS_PATH": str(tmp_path / "datasets")}
-    evaluate(f"run_dir={trained}", "episodes=2", "export=sail/Hopper-v4/agent-v0", f"out={tmp_path / 'e.json'}",
-             "video=true", "video_format=gif", "video_size=[160,120]", env=datasets)
+    evaluate(
+        f"run_dir={trained}",
+        "episodes=2",
+        "export=sail/Hopper-v4/agent-v0",
+        f"out={tmp_path / 'e.json'}",
+        "video=true",
+        "video_format=gif",
+        "video_size=[160,120]",
+        env=datasets,
+    )
     result = json.loads((tmp_path / "e.json").read_text())
     # the GIF: the first episode, its reset frame and one per step, at the requested size
     assert imageio.imread(tmp_path / "e.gif", index=None).shape == (result["length"]["values"][0] + 1, 120, 160, 3)
@@ -103,6 +129,12 @@ def test_evaluate_exports_the_agents_episodes_to_minari(trained, tmp_path):
     # dense rewards recovered from the running return: the episodes' returns, exactly as evaluated
     assert meta["episode_returns"] == pytest.approx(result["dense_return"]["values"], rel=1e-9)
     assert data.numel() == sum(result["length"]["values"]) and data["observation"].shape[-1] == 12
-    proc = evaluate(f"run_dir={trained}", "episodes=1", "export=sail/Hopper-v4/agent-v0", f"out={tmp_path / 'f.json'}",
-                    env=datasets, check=False)
+    proc = evaluate(
+        f"run_dir={trained}",
+        "episodes=1",
+        "export=sail/Hopper-v4/agent-v0",
+        f"out={tmp_path / 'f.json'}",
+        env=datasets,
+        check=False,
+    )
     assert proc.returncode != 0 and "overwrite" in proc.stderr  # an existing dataset is kept

@@ -1,4 +1,5 @@
 """End-to-end runs of ``examples/sail_td3.py`` with tiny budgets: outputs, resume, bad input."""
+
 from __future__ import annotations
 
 import importlib.metadata
@@ -10,7 +11,7 @@ import time
 
 import pytest
 import torch
-from example_runner import REPO, fail_in_process, run, saved, scalar, start
+from example_runner import REPO, fail_in_process, read_scalar, run, saved, start
 
 from torchrl_sail import make_sail_env
 
@@ -31,9 +32,15 @@ TINY = [
 
 def test_smoke_hopper_outputs(tmp_path, teacher_dir):
     run_dir = tmp_path / "run"
-    run(run_dir, "env=Hopper-v4", f"teacher.path={teacher_dir / HOPPER}",
-        "collector.total_frames=3000", "checkpoint.every_frames=2000",
-        "logger.backends=[csv,wandb]", *TINY)
+    run(
+        run_dir,
+        "env=Hopper-v4",
+        f"teacher.path={teacher_dir / HOPPER}",
+        "collector.total_frames=3000",
+        "checkpoint.every_frames=2000",
+        "logger.backends=[csv,wandb]",
+        *TINY,
+    )
 
     summary = json.loads((run_dir / "summary.json").read_text())
     assert summary["frames"] == 3000 and summary["env"] == "Hopper-v4"
@@ -47,14 +54,23 @@ def test_smoke_hopper_outputs(tmp_path, teacher_dir):
     code = summary["provenance"]
     assert code["commit"] == head and isinstance(code["dirty"], bool) and code["torch_threads"] >= 1
     assert code["versions"]["torchrl"] == importlib.metadata.version("torchrl")
-    assert len(scalar(run_dir, "eval/return")) == 3  # at 1000, 2000, 3000 frames
-    for tag in ["train/dense_return", "teacher/threshold", "alpha", "d/accuracy_teacher",
-                "d/accuracy_agent", "d/loss_discriminator", "sail/loss_qvalue",
-                "sail/d_reward_mean", "time/fps", "replay/size"]:
-        rows = scalar(run_dir, tag)
+    assert len(read_scalar(run_dir, "eval/return")) == 3  # at 1000, 2000, 3000 frames
+    for tag in [
+        "train/dense_return",
+        "teacher/threshold",
+        "alpha",
+        "d/accuracy_teacher",
+        "d/accuracy_agent",
+        "d/loss_discriminator",
+        "sail/loss_qvalue",
+        "sail/d_reward_mean",
+        "time/fps",
+        "replay/size",
+    ]:
+        rows = read_scalar(run_dir, tag)
         assert rows, tag
-    assert scalar(run_dir, "alpha")[-1][1] == 0.5
-    assert scalar(run_dir, "replay/size")[-1] == (3000, 3000.0)
+    assert read_scalar(run_dir, "alpha")[-1][1] == 0.5
+    assert read_scalar(run_dir, "replay/size")[-1] == (3000, 3000.0)
     png = (run_dir / "learning_curve.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 5000
     assert (run_dir / "config.yaml").exists()
@@ -66,11 +82,25 @@ def test_smoke_hopper_outputs(tmp_path, teacher_dir):
 
 def test_resume_restores_state(tmp_path, teacher_dir):
     run_dir = tmp_path / "run"
-    common = ["env=Hopper-v4", f"teacher.path={teacher_dir / HOPPER}", "checkpoint.every_frames=1000",
-              "logger.backends=[csv]", *TINY]
+    common = [
+        "env=Hopper-v4",
+        f"teacher.path={teacher_dir / HOPPER}",
+        "checkpoint.every_frames=1000",
+        "logger.backends=[csv]",
+        *TINY,
+    ]
     run(run_dir, *common, "collector.total_frames=2000")
-    names = ("run", "replay", "teacher", "alpha", "loss", "discriminator", "optim_actor", "optim_critic",
-             "optim_discriminator")
+    names = (
+        "run",
+        "replay",
+        "teacher",
+        "alpha",
+        "loss",
+        "discriminator",
+        "optim_actor",
+        "optim_critic",
+        "optim_discriminator",
+    )
     before = saved(run_dir, *names)
 
     # A run folder with a checkpoint is never silently overwritten.
@@ -85,8 +115,10 @@ def test_resume_restores_state(tmp_path, teacher_dir):
     teachers = before["teacher"].writer, after["teacher"].writer
     assert teachers[0].window == teachers[1].window and teachers[0].threshold == teachers[1].threshold == 148.0
     assert teachers[0].num_offered == teachers[1].num_offered > 0
-    assert torch.equal(before["teacher"].storage.get(teachers[0].stored_rows()).to_tensordict().get("observation"),
-                       after["teacher"].storage.get(teachers[1].stored_rows()).to_tensordict().get("observation"))
+    assert torch.equal(
+        before["teacher"].storage.get(teachers[0].stored_rows()).to_tensordict().get("observation"),
+        after["teacher"].storage.get(teachers[1].stored_rows()).to_tensordict().get("observation"),
+    )
     assert after["alpha"] == before["alpha"] == {"alpha": 0.5, "switched_at_frame": None}
     for name in ("loss", "discriminator"):
         torch.testing.assert_close(after[name], before[name], rtol=0, atol=0)
@@ -98,7 +130,7 @@ def test_resume_restores_state(tmp_path, teacher_dir):
     run(run_dir, *common, "collector.total_frames=3000", "resume=true")
     summary = json.loads((run_dir / "summary.json").read_text())
     assert summary["frames"] == 3000 and summary["gradient_steps"] == 150
-    frames = [f for f, _ in scalar(run_dir, "eval/return")]
+    frames = [f for f, _ in read_scalar(run_dir, "eval/return")]
     assert frames == [1000, 2000, 3000]
 
 
@@ -107,8 +139,14 @@ def test_resume_after_kill_continues_the_same_curve(tmp_path, teacher_dir):
     # 3000), then resume: the rows logged after the checkpoint are dropped and logged again,
     # so the curve has each frame once, and wandb keeps the same run id.
     run_dir = tmp_path / "run"
-    common = ["env=Hopper-v4", f"teacher.path={teacher_dir / HOPPER}", "checkpoint.every_frames=2000",
-              "logger.backends=[csv,wandb]", "collector.total_frames=8000", *TINY]
+    common = [
+        "env=Hopper-v4",
+        f"teacher.path={teacher_dir / HOPPER}",
+        "checkpoint.every_frames=2000",
+        "logger.backends=[csv,wandb]",
+        "collector.total_frames=8000",
+        *TINY,
+    ]
     proc = start(run_dir, *common)
     eval_csv = run_dir / "logs" / "scalars" / "eval" / "return.csv"
     deadline = time.time() + 600
@@ -120,14 +158,14 @@ def test_resume_after_kill_continues_the_same_curve(tmp_path, teacher_dir):
     assert proc.wait(60) == -signal.SIGKILL, f"the run ended before it could be killed: {proc.stderr.read()[-3000:]}"
     killed_at = saved(run_dir, "run")["run"]["frames"]
     assert killed_at == 2000, "the kill must land between the 2000- and 4000-frame checkpoints"
-    assert [f for f, _ in scalar(run_dir, "eval/return")] == [1000, 2000, 3000]
+    assert [f for f, _ in read_scalar(run_dir, "eval/return")] == [1000, 2000, 3000]
 
     run(run_dir, *common, "resume=true")
-    assert [f for f, _ in scalar(run_dir, "eval/return")] == [1000, 2000, 3000, 4000, 5000, 6000, 7000, 8000]
+    assert [f for f, _ in read_scalar(run_dir, "eval/return")] == [1000, 2000, 3000, 4000, 5000, 6000, 7000, 8000]
     for tag in ("alpha", "replay/size", "time/fps"):
-        frames = [f for f, _ in scalar(run_dir, tag)]
+        frames = [f for f, _ in read_scalar(run_dir, tag)]
         assert frames == sorted(set(frames)), tag  # no frame logged twice
-    assert scalar(run_dir, "replay/size")[-1] == (8000, 8000.0)
+    assert read_scalar(run_dir, "replay/size")[-1] == (8000, 8000.0)
     runs = sorted((run_dir / "wandb").glob("offline-run-*"))
     assert len(runs) == 2 and len({path.name.rsplit("-", 1)[1] for path in runs}) == 1
 
@@ -143,8 +181,10 @@ def test_resume_after_kill_continues_the_same_curve(tmp_path, teacher_dir):
         (["env=Hopper-v4", "optim.gamma=1.5"], "optim.gamma=1.5"),
         (["env=Hopper-v4", "logger.backends=[csv,mlflowx]"], "mlflowx"),
         (["env=Hopper-v4", "env.name=Swimer-v4"], "Did you mean 'Swimmer-v4'"),
-        (["env=Hopper-v4", "collector.backend=spark"], "Invalid value 'spark', expected one of [direct, process, ray]\n"
-                                                        "    full_key: collector.backend"),
+        (
+            ["env=Hopper-v4", "collector.backend=spark"],
+            "Invalid value 'spark', expected one of [direct, process, ray]\n    full_key: collector.backend",
+        ),
         (["env=Hopper-v4", "collector.backend=direct", "collector.num_workers=2"], "collector.num_workers=2"),
     ],
 )
@@ -167,10 +207,25 @@ def test_wrong_type_is_rejected_by_hydra_naming_the_key(tmp_path):
 
 def test_resume_with_other_env_is_refused(tmp_path, teacher_dir):
     run_dir = tmp_path / "run"
-    run(run_dir, "env=Hopper-v4", f"teacher.path={teacher_dir / HOPPER}", "collector.total_frames=1000",
-        "logger.backends=[csv]", *TINY)
-    proc = run(run_dir, "env=Hopper-v4", f"teacher.path={teacher_dir / HOPPER}", "collector.total_frames=1000",
-               "logger.backends=[csv]", "seed=1", "resume=true", *TINY, check=False)
+    run(
+        run_dir,
+        "env=Hopper-v4",
+        f"teacher.path={teacher_dir / HOPPER}",
+        "collector.total_frames=1000",
+        "logger.backends=[csv]",
+        *TINY,
+    )
+    proc = run(
+        run_dir,
+        "env=Hopper-v4",
+        f"teacher.path={teacher_dir / HOPPER}",
+        "collector.total_frames=1000",
+        "logger.backends=[csv]",
+        "seed=1",
+        "resume=true",
+        *TINY,
+        check=False,
+    )
     assert proc.returncode != 0 and "written with seed=0" in proc.stderr
     assert (run_dir / "summary.json").exists()  # a refused resume leaves the finished run as it was
 
@@ -181,10 +236,24 @@ def test_make_teacher_records_a_demonstration(tmp_path):
 
     from torchrl_sail import load_demonstrations
 
-    proc = subprocess.run([sys.executable, str(REPO / "examples" / "make_teacher.py"), "env=InvertedPendulum-v4",
-                           "frames=1000", "init_random_frames=500", "frames_per_batch=500", "updates_per_batch=10",
-                           "eval_every_frames=500", f"out={tmp_path / 'teacher'}", f"hydra.run.dir={tmp_path / 'run'}"],
-                          capture_output=True, text=True, cwd=REPO, timeout=300)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            str(REPO / "examples" / "make_teacher.py"),
+            "env=InvertedPendulum-v4",
+            "frames=1000",
+            "init_random_frames=500",
+            "frames_per_batch=500",
+            "updates_per_batch=10",
+            "eval_every_frames=500",
+            f"out={tmp_path / 'teacher'}",
+            f"hydra.run.dir={tmp_path / 'run'}",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=300,
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     demos, meta = load_demonstrations(tmp_path / "teacher")
     assert meta["env_id"] == "InvertedPendulum-v4" and demos.numel() == meta["episode_lengths"][0]
@@ -195,19 +264,33 @@ def test_corrupt_checkpoint_is_reported(tmp_path, teacher_dir):
     run_dir = tmp_path / "run"
     (run_dir / "checkpoint").mkdir(parents=True)
     (run_dir / "checkpoint" / "manifest.json").write_text("not a checkpoint")
-    proc = run(run_dir, "env=Hopper-v4", f"teacher.path={teacher_dir / HOPPER}", "resume=true",
-               "collector.total_frames=1000", check=False)
+    proc = run(
+        run_dir,
+        "env=Hopper-v4",
+        f"teacher.path={teacher_dir / HOPPER}",
+        "resume=true",
+        "collector.total_frames=1000",
+        check=False,
+    )
     assert proc.returncode != 0 and "checkpoint is unreadable" in proc.stderr
 
 
 def test_multiprocess_collector(tmp_path, teacher_dir):
     # collector.num_workers > 1: TorchRL's multi-process collector, weights synced per batch.
     run_dir = tmp_path / "run"
-    run(run_dir, "env=Hopper-v4", f"teacher.path={teacher_dir / HOPPER}", "collector.num_workers=2",
-        "collector.total_frames=2000", "logger.backends=[csv]", "checkpoint.every_frames=0", *TINY)
+    run(
+        run_dir,
+        "env=Hopper-v4",
+        f"teacher.path={teacher_dir / HOPPER}",
+        "collector.num_workers=2",
+        "collector.total_frames=2000",
+        "logger.backends=[csv]",
+        "checkpoint.every_frames=0",
+        *TINY,
+    )
     summary = json.loads((run_dir / "summary.json").read_text())
     assert summary["frames"] == 2000 and summary["gradient_steps"] == 100
-    assert scalar(run_dir, "replay/size")[-1] == (2000, 2000.0)
+    assert read_scalar(run_dir, "replay/size")[-1] == (2000, 2000.0)
     # A [2 workers, 250] batch is flattened worker by worker: rows 0 and 250 are each
     # worker's first reset. Worker i is seeded by collector.set_seed(seed=0): 0, then the
     # seed env.set_seed returns, so both starts are reproducible and differ.
@@ -222,17 +305,25 @@ def test_multiprocess_collector(tmp_path, teacher_dir):
 @pytest.mark.parametrize("algo", ["sail_no_lfd", "sail_no_adapt", "sail_onpolicy"])
 def test_ablations_run(tmp_path, teacher_dir, algo):
     run_dir = tmp_path / algo
-    run(run_dir, "env=Hopper-v4", f"algo={algo}", f"teacher.path={teacher_dir / HOPPER}",
-        "collector.total_frames=2000", "logger.backends=[csv]", "checkpoint.every_frames=0", *TINY)
+    run(
+        run_dir,
+        "env=Hopper-v4",
+        f"algo={algo}",
+        f"teacher.path={teacher_dir / HOPPER}",
+        "collector.total_frames=2000",
+        "logger.backends=[csv]",
+        "checkpoint.every_frames=0",
+        *TINY,
+    )
     summary = json.loads((run_dir / "summary.json").read_text())
     assert summary["algo"] == algo and summary["frames"] == 2000
-    alphas = {value for _, value in scalar(run_dir, "alpha")}
+    alphas = {value for _, value in read_scalar(run_dir, "alpha")}
     if algo == "sail_no_lfd":
         assert alphas == {0.0}  # no teacher rows in the TD3 batches
     else:
         assert alphas == {0.5}
     if algo == "sail_no_adapt":  # the teacher buffer never changes: still the one demo
-        assert {value for _, value in scalar(run_dir, "teacher/size")} == {425.0}
+        assert {value for _, value in read_scalar(run_dir, "teacher/size")} == {425.0}
 
 
 @pytest.mark.parametrize("launcher", ["joblib", "submitit_local"])
@@ -241,14 +332,28 @@ def test_seed_sweep_with_launcher(tmp_path, teacher_dir, launcher):
     # as submitit jobs, the path a Slurm sweep (submitit_slurm) takes. Submitit jobs unpickle
     # the task in a fresh interpreter, so examples/ must be importable: PYTHONPATH=examples.
     sweep = tmp_path / "sweep"
-    launcher_options = (["hydra.launcher.n_jobs=2"] if launcher == "joblib"
-                        else ["hydra.launcher.cpus_per_task=1", "hydra.launcher.timeout_min=10"])
-    run(sweep, f"hydra/launcher={launcher}", *launcher_options, "seed=0,1", "env=Hopper-v4",
-        f"teacher.path={teacher_dir / HOPPER}", "collector.total_frames=1000", "logger.backends=[csv]",
-        "checkpoint.every_frames=0", *TINY, multirun=True, env={"PYTHONPATH": "examples"})
+    launcher_options = (
+        ["hydra.launcher.n_jobs=2"]
+        if launcher == "joblib"
+        else ["hydra.launcher.cpus_per_task=1", "hydra.launcher.timeout_min=10"]
+    )
+    run(
+        sweep,
+        f"hydra/launcher={launcher}",
+        *launcher_options,
+        "seed=0,1",
+        "env=Hopper-v4",
+        f"teacher.path={teacher_dir / HOPPER}",
+        "collector.total_frames=1000",
+        "logger.backends=[csv]",
+        "checkpoint.every_frames=0",
+        *TINY,
+        multirun=True,
+        env={"PYTHONPATH": "examples"},
+    )
     summaries = [json.loads((sweep / f"seed{seed}" / "summary.json").read_text()) for seed in (0, 1)]
     assert [s["seed"] for s in summaries] == [0, 1]
     assert all(s["frames"] == 1000 and s["gradient_steps"] == 50 for s in summaries)
     # Different seeds, different data: the random warm-up episodes differ.
-    returns = [scalar(sweep / f"seed{seed}", "train/dense_return") for seed in (0, 1)]
+    returns = [read_scalar(sweep / f"seed{seed}", "train/dense_return") for seed in (0, 1)]
     assert returns[0] != returns[1]

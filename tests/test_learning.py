@@ -10,15 +10,16 @@ Checked on seeds 0-3 before committing (same config, 3 deterministic eval episod
 46 / 55 / 76 / 81), the threshold C ended at 7 / 9 / 8 / 7, with 33-54 promotions. At 10k
 frames one seed of five was still at 23, so 10k is not enough for a reliable test.
 """
+
 from __future__ import annotations
 
 import json
 
 import pytest
 import torch
+from example_runner import read_scalar, run
 
-from example_runner import run, scalar
-from torchrl_sail import make_sail_env, save_demonstrations, TRANSITION_KEYS
+from torchrl_sail import TRANSITION_KEYS, make_sail_env, save_demonstrations
 
 pytestmark = pytest.mark.filterwarnings("ignore:.*is out of date.*")
 
@@ -49,8 +50,11 @@ def weak_teacher(path):
         rollout = env.rollout(1000, break_when_any_done=True)
         if best is None or rollout.numel() > best.numel():
             best = rollout
-    save_demonstrations(path, best.select(*TRANSITION_KEYS, "step_count"),
-                        {"env_id": ENV, "made_by": "best of 200 random-policy episodes"})
+    save_demonstrations(
+        path,
+        best.select(*TRANSITION_KEYS, "step_count"),
+        {"env_id": ENV, "made_by": "best of 200 random-policy episodes"},
+    )
     return float(best["next", "reward"].sum())
 
 
@@ -65,7 +69,7 @@ def test_sail_surpasses_weak_teacher(tmp_path):
     assert summary["teacher_return"] == teacher_return
     # Clearly above the teacher, from the delayed reward alone: the last three evaluations
     # (9 deterministic episodes; single evaluations are noisy) average >= 2x the teacher.
-    last = [value for _, value in scalar(run_dir, "eval/return")[-3:]]
+    last = [value for _, value in read_scalar(run_dir, "eval/return")[-3:]]
     assert sum(last) / 3 >= 2 * teacher_return, (last, summary)
     # Algorithm 1 at work: own trajectories beat C and refill the teacher buffer ...
     assert summary["num_promoted"] >= 1, summary

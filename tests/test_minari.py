@@ -1,7 +1,9 @@
 """Tests for torchrl_sail.data.minari (Minari datasets: export, load, checks, the example)."""
+
 from __future__ import annotations
 
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -41,12 +43,20 @@ def _episodes(lengths=(3, 4), terminated=(True, False), obs_dim=3, act_dim=2) ->
     for i, (T, term) in enumerate(zip(lengths, terminated)):
         obs = torch.randn(T + 1, obs_dim)
         done = torch.arange(T)[:, None] == T - 1
-        parts.append(TensorDict({
-            "observation": obs[:-1], "action": torch.rand(T, act_dim) * 2 - 1,
-            ("next", "observation"): obs[1:], ("next", "reward"): torch.randn(T, 1) + 10 * i,
-            ("next", "done"): done, ("next", "terminated"): done & term,
-            ("next", "truncated"): done & (not term),
-        }, batch_size=[T]))
+        parts.append(
+            TensorDict(
+                {
+                    "observation": obs[:-1],
+                    "action": torch.rand(T, act_dim) * 2 - 1,
+                    ("next", "observation"): obs[1:],
+                    ("next", "reward"): torch.randn(T, 1) + 10 * i,
+                    ("next", "done"): done,
+                    ("next", "terminated"): done & term,
+                    ("next", "truncated"): done & (not term),
+                },
+                batch_size=[T],
+            )
+        )
     return torch.cat(parts)
 
 
@@ -68,9 +78,13 @@ def _write_raw(root: Path, dataset_id: str, episodes, obs_space, act_space) -> P
 
 
 def _raw_episode(T=3, obs_dim=3, act_dim=2, end=True, obs=None):
-    return dict(observations=np.random.randn(T + 1, obs_dim).astype(np.float32) if obs is None else obs,
-                actions=np.zeros((T, act_dim), np.float32), rewards=np.ones(T, np.float32),
-                terminations=np.arange(T) == T - 1 if end else np.zeros(T, bool), truncations=np.zeros(T, bool))
+    return dict(
+        observations=np.random.randn(T + 1, obs_dim).astype(np.float32) if obs is None else obs,
+        actions=np.zeros((T, act_dim), np.float32),
+        rewards=np.ones(T, np.float32),
+        terminations=np.arange(T) == T - 1 if end else np.zeros(T, bool),
+        truncations=np.zeros(T, bool),
+    )
 
 
 BOX3, BOX2 = gym.spaces.Box(-np.inf, np.inf, (3,), np.float32), gym.spaces.Box(-1, 1, (2,), np.float32)
@@ -158,14 +172,17 @@ def test_dict_observation_space_is_rejected(root):
         load_demonstrations("minari:bad/dict-v0")
 
 
-@pytest.mark.parametrize("case, message", [
-    ("dims", r"episode 0: observations \(4, 3\), .* expected \(T \+ 1, 4\)"),
-    ("no_end", "episode 1 does not end with terminated or truncated"),
-    ("early_end", "episode 0 is done at step 0, before its last step 2"),
-    ("too_long", "episode 0 has 3 steps, more than max_episode_steps=2"),
-    ("actions", r"actions leave the action space Box\(-1.0, 1.0, \(2,\), float32\) by 1"),
-    ("rewards_sum", "episode 0 has rewards_sum 7.000000 but its rewards sum to 3.000000"),
-])
+@pytest.mark.parametrize(
+    "case, message",
+    [
+        ("dims", r"episode 0: observations \(4, 3\), .* expected \(T \+ 1, 4\)"),
+        ("no_end", "episode 1 does not end with terminated or truncated"),
+        ("early_end", "episode 0 is done at step 0, before its last step 2"),
+        ("too_long", "episode 0 has 3 steps, more than max_episode_steps=2"),
+        ("actions", r"actions leave the action space Box\(-1.0, 1.0, \(2,\), float32\) by 1"),
+        ("rewards_sum", "episode 0 has rewards_sum 7.000000 but its rewards sum to 3.000000"),
+    ],
+)
 def test_bad_datasets_are_rejected(root, case, message):
     episodes, obs_space = [_raw_episode(), _raw_episode(end=case != "no_end")], BOX3
     if case == "dims":
@@ -232,6 +249,7 @@ def test_missing_minari_says_how_to_install(monkeypatch):
         load_demonstrations("minari:sail/Hopper-v4/teacher-v0")
 
 
+@pytest.mark.slow
 def test_example_trains_on_a_minari_teacher(root, tmp_path):
     # A dataset in the D4RL layout (plain Hopper-v4 observations, no time column): the example
     # appends the column its env has (teacher.path=minari:<id>) and runs.
@@ -243,12 +261,84 @@ def test_example_trains_on_a_minari_teacher(root, tmp_path):
         plain[key] = plain[key][:, :-1].contiguous()
     export_minari_dataset(plain, "d4rl-like/hopper/teacher-v0", env="Hopper-v4")
     run_dir = tmp_path / "run"
-    run(run_dir, "env=Hopper-v4", "teacher.path=minari:d4rl-like/hopper/teacher-v0", "collector.total_frames=200",
-        "collector.init_random_frames=100", "collector.frames_per_batch=100", "optim.train_every_frames=100",
-        "optim.updates_per_train=2", "optim.batch_size=32", "optim.discriminator.every_frames=100",
-        "optim.discriminator.steps=1", "optim.discriminator.batch_size=16", "eval.every_frames=0",
-        "checkpoint.every_frames=0", "logger.backends=[csv]", env={"MINARI_DATASETS_PATH": str(root)})
+    run(
+        run_dir,
+        "env=Hopper-v4",
+        "teacher.path=minari:d4rl-like/hopper/teacher-v0",
+        "collector.total_frames=200",
+        "collector.init_random_frames=100",
+        "collector.frames_per_batch=100",
+        "optim.train_every_frames=100",
+        "optim.updates_per_train=2",
+        "optim.batch_size=32",
+        "optim.discriminator.every_frames=100",
+        "optim.discriminator.steps=1",
+        "optim.discriminator.batch_size=16",
+        "eval.every_frames=0",
+        "checkpoint.every_frames=0",
+        "logger.backends=[csv]",
+        env={"MINARI_DATASETS_PATH": str(root)},
+    )
     summary = json.loads((run_dir / "summary.json").read_text())
     assert summary["teacher_source"] == "minari:d4rl-like/hopper/teacher-v0" and summary["frames"] == 200
     assert summary["teacher_return"] == pytest.approx(demos.metadata["episode_returns"][0])
     assert summary["teacher_threshold"] == 46.0  # floor(0.1 * 463.6): the demonstration is in the buffer
+
+
+def test_non_finite_values_are_rejected(root):
+    episodes = [_raw_episode(), _raw_episode()]
+    episodes[1]["observations"][2, 1] = np.nan
+    folder = _write_raw(root, "bad/nan-v0", episodes, BOX3, BOX2)
+    with pytest.raises(
+        ValueError,
+        match=r"nan-v0: episode 1: 'observations' has a non-finite value \(nan\) at "
+        r"step 2, column 1",
+    ):
+        load_demonstrations(folder)
+    episodes = [_raw_episode(), _raw_episode()]
+    episodes[0]["rewards"][1] = np.inf
+    folder = _write_raw(root, "bad/inf-v0", episodes, BOX3, BOX2)
+    with pytest.raises(ValueError, match=r"inf-v0: episode 0: 'rewards' has a non-finite value \(inf\) at step 1"):
+        load_demonstrations("minari:bad/inf-v0")
+    folder = _write_raw(root, "bad/nansum-v0", [_raw_episode(), _raw_episode()], BOX3, BOX2)
+    MinariStorage.read(folder / "data").update_episode_metadata([{"rewards_sum": 3.0}, {"rewards_sum": float("nan")}])
+    with pytest.raises(ValueError, match=r"nansum-v0: 'rewards_sum' has a non-finite value \(nan\) at episode 1"):
+        load_demonstrations(folder)
+    td = _episodes()
+    td["action"][4, 1] = float("nan")
+    with pytest.raises(
+        ValueError,
+        match=r"demonstrations to export as 'sail/toy/demo-v0': 'action' has a "
+        r"non-finite value \(nan\) at row 4, column 1",
+    ):
+        export_minari_dataset(td, ID)
+    assert not (root / ID).exists()
+
+
+def test_export_uses_minari_public_api_and_root(tmp_path, monkeypatch):
+    # root= without MINARI_DATASETS_PATH: the variable Minari's functions read is set only
+    # during the export, then restored
+    monkeypatch.delenv("MINARI_DATASETS_PATH", raising=False)
+    root = tmp_path / "elsewhere"
+    td = _episodes()
+    path = export_minari_dataset(td, "sail/nested/toy/demo-v1", root=root, author=["a", "b"])
+    assert "MINARI_DATASETS_PATH" not in os.environ
+    assert path == root / "sail/nested/toy/demo-v1"
+    assert sorted(p.name for p in root.iterdir()) == ["sail"]  # no scratch folder left
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(root))
+    assert minari.list_local_datasets().keys() == {"sail/nested/toy/demo-v1"}
+    from minari.namespace import list_local_namespaces
+
+    assert list_local_namespaces() == ["sail", "sail/nested", "sail/nested/toy"]
+    data, meta = load_minari_demonstrations("sail/nested/toy/demo-v1")
+    _assert_same(data, td)
+    assert meta["author"] == ["a", "b"] and meta["data_format"] == "hdf5"
+    assert meta["minari_version"] == minari.__version__ and meta["dataset_id"] == "sail/nested/toy/demo-v1"
+
+
+def test_failed_export_leaves_nothing(root, monkeypatch):
+    monkeypatch.setitem(sys.modules, "pyarrow", None)  # data_format="arrow" needs it
+    with pytest.raises(ImportError, match="pyarrow"):
+        export_minari_dataset(_episodes(), ID, data_format="arrow")
+    assert not root.exists() or not [p for p in root.rglob("*") if p.is_file() or p.name.startswith(".")]
+    assert os.environ["MINARI_DATASETS_PATH"] == str(root)

@@ -1,15 +1,17 @@
 """Tests for MixedReplayBuffer (torchrl_sail/data/mixed_buffer.py)."""
+
 from __future__ import annotations
 
 import argparse
 
 import pytest
 import torch
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from tensordict import TensorDict
 from torchrl.data import LazyTensorStorage, ReplayBuffer, TensorDictReplayBuffer
 
-from torchrl_sail import MixedReplayBuffer, TRANSITION_KEYS
+from torchrl_sail import TRANSITION_KEYS, MixedReplayBuffer
 
 OBS = 3
 TEACHER_MARK, AGENT_MARK = 100.0, 0.0
@@ -122,7 +124,6 @@ class TestMixedReplayBuffer:
         expected = torch.cat([teacher["observation"].reshape(3, 2, OBS), agent["observation"].reshape(3, 2, OBS)], 1)
         torch.testing.assert_close(block["observation"], expected)
 
-
     def test_row_ids_name_the_stored_row(self):
         rb = MixedReplayBuffer(_TEACHER, _AGENT, row_id_key=("meta", "row"))
         block = rb.sample(6, teacher_fraction=0.5, num_batches=40).reshape(-1)
@@ -141,6 +142,7 @@ class TestMixedReplayBuffer:
         teacher.extend(transitions(8, TEACHER_MARK).reshape(2, 4))
         with pytest.raises(ValueError, match="needs flat storages.*teacher buffer"):
             MixedReplayBuffer(teacher, _AGENT, row_id_key="row_id").sample(4, teacher_fraction=0.5)
+
 
 if __name__ == "__main__":
     args, unknown = argparse.ArgumentParser().parse_known_args()

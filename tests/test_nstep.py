@@ -5,6 +5,7 @@ One hand-computed stream, n = 3, gamma = 0.5, rewards r_t = t + 1, observations 
 (truncated at 6), C starts at 7 and goes on. It arrives in collector batches [0..4], [5..9],
 [10, 11], so windows cross both batch boundaries and both episode ends.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -34,11 +35,18 @@ EXPECTED = {
 def stream(ts, *, done_at=(3, 6), terminated_at=(3,), offset=0.0):
     t = torch.tensor(ts, dtype=torch.float32).unsqueeze(-1)
     done, terminated = torch.isin(t, torch.tensor(done_at)), torch.isin(t, torch.tensor(terminated_at))
-    return TensorDict({
-        "observation": t + offset, "action": torch.zeros(len(ts), 2),
-        ("next", "observation"): t + offset + 0.5, ("next", "reward"): t + offset + 1,
-        ("next", "done"): done, ("next", "terminated"): terminated, ("next", "truncated"): done & ~terminated,
-    }, [len(ts)])
+    return TensorDict(
+        {
+            "observation": t + offset,
+            "action": torch.zeros(len(ts), 2),
+            ("next", "observation"): t + offset + 0.5,
+            ("next", "reward"): t + offset + 1,
+            ("next", "done"): done,
+            ("next", "terminated"): terminated,
+            ("next", "truncated"): done & ~terminated,
+        },
+        [len(ts)],
+    )
 
 
 def check(out, ts):
@@ -80,14 +88,18 @@ class TestNStepTransform:
     def test_streams_are_independent(self):
         # [B, T] collector batches: the window runs along time in each stream
         nstep = NStepTransform(N, GAMMA)
-        batches = [torch.stack([stream(ts), stream(ts, done_at=(), terminated_at=(), offset=100.0)])
-                   for ts in (range(0, 5), range(5, 10))]
+        batches = [
+            torch.stack([stream(ts), stream(ts, done_at=(), terminated_at=(), offset=100.0)])
+            for ts in (range(0, 5), range(5, 10))
+        ]
         nstep.inv(batches[0])
         out = nstep.inv(batches[1])
         check(out[0], [2, 3, 4, 5, 6])
         r = [t + 101.0 for t in range(2, 9)]  # the second stream never ends: full windows
-        torch.testing.assert_close(out[1]["next_n", "reward"].squeeze(-1),
-                                   torch.tensor([r[i] + 0.5 * r[i + 1] + 0.25 * r[i + 2] for i in range(5)]))
+        torch.testing.assert_close(
+            out[1]["next_n", "reward"].squeeze(-1),
+            torch.tensor([r[i] + 0.5 * r[i + 1] + 0.25 * r[i + 2] for i in range(5)]),
+        )
         assert out[1]["next_n", "observation"].squeeze(-1).tolist() == [104.5, 105.5, 106.5, 107.5, 108.5]
 
     def test_same_lookahead_as_torchrl_multistep(self):

@@ -1,5 +1,7 @@
-"""The on-policy baselines' pieces (examples/gail.py): observation normalisation, its checkpoint and
-its freezing at evaluation, what the discriminator reads, POfD's lambda_1 and PPO's lr schedules."""
+"""The on-policy baselines' pieces (examples/gail.py and its builders in examples/utils.py): observation
+normalisation, its checkpoint and its freezing at evaluation, what the discriminator reads, POfD's lambda_1
+and PPO's lr schedules."""
+
 from __future__ import annotations
 
 import copy
@@ -16,8 +18,9 @@ from torchrl_sail import make_sail_env, observation_normalizer
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "examples"))
 from config_schema import register_config_schema  # noqa: E402
-from gail import copy_observation_norm, lr_factor, make_ppo_models, pofd_lambda  # noqa: E402
-from utils import evaluate_episodes, make_discriminator, make_env  # noqa: E402
+from gail import lr_factor, pofd_lambda  # noqa: E402
+from run_utils import evaluate_episodes  # noqa: E402
+from utils import copy_observation_norm, make_discriminator, make_env, make_ppo_models  # noqa: E402
 
 register_config_schema()
 
@@ -105,8 +108,12 @@ def test_checkpoint_restores_the_statistics(tmp_path):
     Checkpoint(observation_norm=observation_normalizer(fresh)).load(tmp_path / "checkpoint")
     assert_same_stats(stats(observation_normalizer(fresh)), stats(observation_normalizer(env)))
     assert int(stats(observation_normalizer(fresh))["count.-|-.observation"]) >= 26  # 25 steps and the resets
-    torch.testing.assert_close(observation_normalizer(fresh).scale["observation"],
-                               observation_normalizer(env).scale["observation"], rtol=0, atol=0)
+    torch.testing.assert_close(
+        observation_normalizer(fresh).scale["observation"],
+        observation_normalizer(env).scale["observation"],
+        rtol=0,
+        atol=0,
+    )
 
 
 def test_pofd_lambda_and_lr_schedules():
@@ -121,5 +128,10 @@ def test_pofd_lambda_and_lr_schedules():
     # TorchRL's PPO lr: 1 - done / all updates, floored at 0
     assert lr_factor(0, 320) == 1.0 and lr_factor(319, 320) == pytest.approx(1 / 320) and lr_factor(400, 320) == 0.0
     gail = make_cfg("algo=gail").algo.ppo
-    assert (gail.critic_coef, gail.loss_critic_type, gail.anneal_lr, gail.anneal_clip_epsilon,
-            gail.normalize_observations) == (0.25, "l2", True, False, True)
+    assert (
+        gail.critic_coef,
+        gail.loss_critic_type,
+        gail.anneal_lr,
+        gail.anneal_clip_epsilon,
+        gail.normalize_observations,
+    ) == (0.25, "l2", True, False, True)

@@ -6,6 +6,7 @@ teacher file, a ``Collector``, the teacher buffer's promotion rule on collector 
 exact-ratio mixing with discriminator rewards recomputed at sample time, one
 discriminator step, one SAIL critic/actor step with target updates, and the alpha switch.
 """
+
 from __future__ import annotations
 
 import math
@@ -21,6 +22,7 @@ from torchrl.modules import MLP, AdditiveGaussianModule, TanhModule, ValueOperat
 from torchrl.objectives import SoftUpdate
 
 from torchrl_sail import (
+    TRANSITION_KEYS,
     AlphaScheduler,
     DelayedRewardTransform,
     Discriminator,
@@ -31,7 +33,6 @@ from torchrl_sail import (
     TeacherReplayBuffer,
     TimeFeature,
     TopKTrajectoryWriter,
-    TRANSITION_KEYS,
     check_demonstration_dims,
     load_demonstrations,
 )
@@ -87,12 +88,8 @@ def test_sail_pipeline_one_iteration(teacher_dir):
     # Collection: a random-warm-up collector; every transition goes to the agent replay,
     # every finished trajectory to the promotion test.
     actor, critic = make_agent(env.action_spec)
-    policy = TensorDictSequential(
-        actor, AdditiveGaussianModule(spec=env.action_spec, sigma_init=0.2, sigma_end=0.2)
-    )
-    collector = Collector(
-        env, policy, frames_per_batch=200, total_frames=400, init_random_frames=400
-    )
+    policy = TensorDictSequential(actor, AdditiveGaussianModule(spec=env.action_spec, sigma_init=0.2, sigma_end=0.2))
+    collector = Collector(env, policy, frames_per_batch=200, total_frames=400, init_random_frames=400)
     agent = TensorDictReplayBuffer(storage=LazyTensorStorage(1_000))
     num_episodes = 0
     for data in collector:

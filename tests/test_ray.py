@@ -1,5 +1,6 @@
 """``collector.backend=ray`` end to end: 2 Ray actors collect, the learner trains and pushes its
 weights to the actors after every batch (TorchRL's ``RayWeightSyncScheme``)."""
+
 from __future__ import annotations
 
 import json
@@ -17,7 +18,7 @@ from tensordict import TensorDict  # noqa: E402
 from tensordict.nn import TensorDictModule, TensorDictSequential  # noqa: E402
 from torchrl.modules import MLP, TanhModule  # noqa: E402
 
-from torchrl_sail import make_sail_env, save_demonstrations, TRANSITION_KEYS  # noqa: E402
+from torchrl_sail import TRANSITION_KEYS, make_sail_env, save_demonstrations  # noqa: E402
 
 ENV = "InvertedPendulum-v4"
 CELLS = [64, 64]
@@ -68,12 +69,18 @@ def weak_teacher(path) -> None:
 
 def final_actor(loss_state: dict, env) -> TensorDictSequential:
     """The example's deterministic TD3 actor (MLP -> TanhModule) with the checkpoint's weights."""
-    mlp = MLP(in_features=env.observation_spec["observation"].shape[-1], out_features=env.action_spec.shape[-1],
-              num_cells=CELLS, activation_class=nn.ReLU)
+    mlp = MLP(
+        in_features=env.observation_spec["observation"].shape[-1],
+        out_features=env.action_spec.shape[-1],
+        num_cells=CELLS,
+        activation_class=nn.ReLU,
+    )
     prefix = "actor_network_params.module.0.module."
-    mlp.load_state_dict({key[len(prefix):]: value for key, value in loss_state.items() if key.startswith(prefix)})
-    return TensorDictSequential(TensorDictModule(mlp, in_keys=["observation"], out_keys=["param"]),
-                                TanhModule(in_keys=["param"], out_keys=["action"], spec=env.action_spec))
+    mlp.load_state_dict({key[len(prefix) :]: value for key, value in loss_state.items() if key.startswith(prefix)})
+    return TensorDictSequential(
+        TensorDictModule(mlp, in_keys=["observation"], out_keys=["param"]),
+        TanhModule(in_keys=["param"], out_keys=["action"], spec=env.action_spec),
+    )
 
 
 def test_ray_collector_trains_and_pushes_weights(tmp_path):

@@ -1,4 +1,5 @@
 """Tests for RNDReward (envs/rnd_reward.py): the RND bonus at sample time."""
+
 from __future__ import annotations
 
 import argparse
@@ -23,22 +24,29 @@ def _linear(weight):
 
 def _batch(next_obs, reward):
     n = len(next_obs)
-    return TensorDict({"next": {"observation": torch.tensor(next_obs), "reward": torch.tensor(reward).unsqueeze(-1)}},
-                      batch_size=[n])
+    return TensorDict(
+        {"next": {"observation": torch.tensor(next_obs), "reward": torch.tensor(reward).unsqueeze(-1)}}, batch_size=[n]
+    )
 
 
 class TestRNDReward:
     def test_bonus_against_hand_values(self):
         # target = identity, predictor = 2 * identity: error = mean(x^2) over the 2 features
-        rnd = RNDReward(_linear([[1.0, 0.0], [0.0, 1.0]]), _linear([[2.0, 0.0], [0.0, 2.0]]), coef=0.5,
-                        normalize_obs=False, normalize_reward=False)
+        rnd = RNDReward(
+            _linear([[1.0, 0.0], [0.0, 1.0]]),
+            _linear([[2.0, 0.0], [0.0, 2.0]]),
+            coef=0.5,
+            normalize_obs=False,
+            normalize_reward=False,
+        )
         out = rnd(_batch([[1.0, 3.0], [0.0, 2.0]], [10.0, 20.0]))
         # bonus: (1 + 9) / 2 = 5 and (0 + 4) / 2 = 2; reward + 0.5 * bonus
         assert out["next", "reward"].squeeze(-1).tolist() == [12.5, 21.0]
 
     def test_statistics_normalise_and_are_not_updated_at_sample_time(self):
-        rnd = RNDReward(_linear([[1.0, 0.0], [0.0, 1.0]]), _linear([[2.0, 0.0], [0.0, 2.0]]), reward_clip=100.0,
-                        obs_clip=100.0)
+        rnd = RNDReward(
+            _linear([[1.0, 0.0], [0.0, 1.0]]), _linear([[2.0, 0.0], [0.0, 2.0]]), reward_clip=100.0, obs_clip=100.0
+        )
         env = TransformedEnv(ContinuousActionVecMockEnv(), RNDReward(nn.Linear(7, 4), nn.Linear(7, 4)))
         check_env_specs(env)  # the inherited env path
         rnd._maybe_init_rms(torch.zeros(2))
@@ -70,8 +78,9 @@ class TestRNDReward:
         rnd = RNDReward(target, predictor, normalize_obs=False, normalize_reward=False, row_id_key="row_id")
         stored = torch.randn(5, 3)
         ids = torch.tensor([[0, 3, 3, 1], [4, 0, 1, 1]])  # a [2, 4] block drawing 4 distinct rows
-        block = TensorDict({"row_id": ids, "next": {"observation": stored[ids], "reward": torch.zeros(2, 4, 1)}},
-                           batch_size=[2, 4])
+        block = TensorDict(
+            {"row_id": ids, "next": {"observation": stored[ids], "reward": torch.zeros(2, 4, 1)}}, batch_size=[2, 4]
+        )
         out = rnd(block.clone())
         assert calls == [4]
         expected = RNDReward(target, predictor, normalize_obs=False, normalize_reward=False).bonus(stored[ids])

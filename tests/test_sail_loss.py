@@ -2,6 +2,7 @@
 
 The weighted form (``mixing="weights"``) is tested against hand-written references; the
 default batch form must be exactly TorchRL's TD3Loss."""
+
 from __future__ import annotations
 
 import argparse
@@ -101,11 +102,7 @@ def q_params(loss):
 
 
 def actor_params(loss):
-    return [
-        p
-        for p in loss.actor_network_params.values(True, True)
-        if isinstance(p, torch.nn.Parameter)
-    ]
+    return [p for p in loss.actor_network_params.values(True, True) if isinstance(p, torch.nn.Parameter)]
 
 
 def grads(out, params):
@@ -182,8 +179,6 @@ def _roundtrip(obj):
     return buf
 
 
-
-
 class TestSAILLoss:
     @pytest.mark.parametrize("alpha", [0.0, 0.3, 1.0])
     def test_batch_mixing_is_exactly_td3(self, alpha):
@@ -195,11 +190,11 @@ class TestSAILLoss:
         out_s, out_t = sail(batch.clone()), td3(batch.exclude("is_teacher"))
         for key in ("loss_qvalue", "loss_actor"):
             torch.testing.assert_close(out_s[key], out_t[key], rtol=0, atol=0)
-        assert_close_all(grads(out_s["loss_qvalue"], q_params(sail)), grads(out_t["loss_qvalue"], q_params(td3)),
-                         rtol=0, atol=0)
+        assert_close_all(
+            grads(out_s["loss_qvalue"], q_params(sail)), grads(out_t["loss_qvalue"], q_params(td3)), rtol=0, atol=0
+        )
         assert "is_teacher" not in sail.in_keys and float(out_s["alpha"]) == pytest.approx(alpha)
         assert sail(batch.exclude("is_teacher"))["loss_qvalue"] == out_s["loss_qvalue"]  # no tag needed
-
 
     def test_alpha0_equals_td3_on_agent_rows(self):
         sail = make_loss(alpha=0.0, policy_noise=0.0)
@@ -223,7 +218,6 @@ class TestSAILLoss:
         # the teacher rows really are in the batch, they just weigh nothing
         assert sail_in["td_error"].shape == (8,)
         assert float(sail_in["td_error"][:3].sum()) > 0
-
 
     def test_alpha1_only_depends_on_teacher_rows(self):
         loss = make_loss(alpha=1.0)  # default target policy noise, seeded below
@@ -251,7 +245,6 @@ class TestSAILLoss:
         assert not torch.allclose(out_a["loss_qvalue"], out_c["loss_qvalue"])
         assert not torch.allclose(out_a["loss_actor"], out_c["loss_actor"])
 
-
     @pytest.mark.parametrize("n_teacher,n_agent", [(4, 4), (3, 5)])
     def test_alpha_half_matches_hand_reference(self, n_teacher, n_agent):
         loss = make_loss(alpha=0.5, policy_noise=0.6, noise_clip=0.5)
@@ -264,16 +257,13 @@ class TestSAILLoss:
         ref_actor, ref_critic = reference(loss, batch, 0.5, noise)
         torch.testing.assert_close(out["loss_qvalue"], ref_critic)
         torch.testing.assert_close(out["loss_actor"], ref_actor)
-        assert_close_all(
-            grads(out["loss_qvalue"], q_params(loss)), grads(ref_critic, q_params(loss))
-        )
-        assert_close_all(
-            grads(out["loss_actor"], actor_params(loss)), grads(ref_actor, actor_params(loss))
-        )
+        assert_close_all(grads(out["loss_qvalue"], q_params(loss)), grads(ref_critic, q_params(loss)))
+        assert_close_all(grads(out["loss_actor"], actor_params(loss)), grads(ref_actor, actor_params(loss)))
         # the actor loss reaches no critic parameter
-        assert all(g is None for g in torch.autograd.grad(
-            out["loss_actor"], q_params(loss), retain_graph=True, allow_unused=True))
-
+        assert all(
+            g is None
+            for g in torch.autograd.grad(out["loss_actor"], q_params(loss), retain_graph=True, allow_unused=True)
+        )
 
     @pytest.mark.parametrize(
         "alpha,n_teacher,n_agent",
@@ -297,7 +287,6 @@ class TestSAILLoss:
         torch.testing.assert_close(out["loss_qvalue"], mix(critic_rows))
         torch.testing.assert_close(out["loss_actor"], mix(actor_rows))
 
-
     def test_balanced_batch_with_matching_alpha_is_exactly_td3(self):
         # the authors' setting: 128 + 128 rows, alpha = 0.5, plain mean over the batch
         sail = make_loss(alpha=0.5, policy_noise=0.0)
@@ -308,15 +297,12 @@ class TestSAILLoss:
         torch.testing.assert_close(out_s["loss_qvalue"], out_t["loss_qvalue"], rtol=1e-6, atol=0)
         torch.testing.assert_close(out_s["loss_actor"], out_t["loss_actor"], rtol=1e-6, atol=0)
 
-
     def test_reductions_sum_and_none(self):
         mean_loss = make_loss(alpha=0.3, policy_noise=0.0)
         batch = make_batch(2, 4, seed=7)
         out_mean = mean_loss(batch.clone())
         for reduction in ("sum", "none"):
-            other = make_loss(
-                alpha=0.3, policy_noise=0.0, reduction=reduction, perturb_targets=False
-            )
+            other = make_loss(alpha=0.3, policy_noise=0.0, reduction=reduction, perturb_targets=False)
             copy_params(other, mean_loss)
             out = other(batch.clone())
             for key in ("loss_qvalue", "loss_actor"):
@@ -326,7 +312,6 @@ class TestSAILLoss:
                     assert value.shape == (6,)
                     value = value.sum()
                 torch.testing.assert_close(value, 6 * out_mean[key])
-
 
     def test_prioritized_weights_are_normalised_within_groups(self):
         alpha = 0.4
@@ -356,7 +341,6 @@ class TestSAILLoss:
         expected = alpha * critic_rows[tag].mean() + (1 - alpha) * critic_rows[~tag].mean()
         torch.testing.assert_close(off(batch.clone())["loss_qvalue"], expected)
 
-
     def test_masked_rows_are_left_out_of_the_counts(self):
         alpha = 0.5
         loss = make_loss(alpha=alpha, policy_noise=0.0)
@@ -365,24 +349,26 @@ class TestSAILLoss:
         batch["collector", "mask"] = mask
         actor_rows, critic_rows = td3_per_row(loss, batch)
         tag = batch["is_teacher"]
-        expected = (
-            alpha * critic_rows[tag & mask].mean()
-            + (1 - alpha) * critic_rows[~tag & mask].mean()
-        )
+        expected = alpha * critic_rows[tag & mask].mean() + (1 - alpha) * critic_rows[~tag & mask].mean()
         torch.testing.assert_close(loss(batch.clone())["loss_qvalue"], expected)
         # a group with no valid row contributes nothing: the agent mean alone
         mask = torch.tensor([False, False, False, True, True, True, True])
         batch["collector", "mask"] = mask
         torch.testing.assert_close(loss(batch.clone())["loss_qvalue"], critic_rows[mask].mean())
 
-
     def test_outputs_and_td_error(self):
         loss = make_loss(alpha=0.5)
         batch = make_batch(3, 5, seed=10)
         td = batch.clone()
         out = loss(td)
-        td3_keys = {"loss_actor", "loss_qvalue", "pred_value", "state_action_value_actor",
-                    "next_state_value", "target_value"}
+        td3_keys = {
+            "loss_actor",
+            "loss_qvalue",
+            "pred_value",
+            "state_action_value_actor",
+            "next_state_value",
+            "target_value",
+        }
         assert td3_keys | {"alpha", "pred_value_teacher", "pred_value_agent"} == set(out.keys())
         assert set(make_loss(mixing="batch")(batch.clone()).keys()) == td3_keys | {"alpha"} == set(loss.out_keys)
         assert td["td_error"].shape == (8,)
@@ -393,7 +379,6 @@ class TestSAILLoss:
         assert not out["alpha"].requires_grad
         loss.alpha = 0.0  # the logged value is a copy, not a view of the buffer
         assert float(out["alpha"]) == 0.5
-
 
     def test_dispatch_keyword_mode_matches_tensordict_mode(self):
         loss = make_loss(alpha=0.3, policy_noise=0.0)
@@ -413,16 +398,13 @@ class TestSAILLoss:
         torch.testing.assert_close(loss_qvalue, out["loss_qvalue"])
         assert float(alpha) == pytest.approx(0.3)
 
-
     # ------------------------------------------------------------------ alpha buffer
-
 
     @pytest.mark.parametrize("bad", [-0.1, 1.5, float("nan")])
     def test_alpha_out_of_range_at_construction(self, bad):
         actor, critic = make_nets()
         with pytest.raises(ValueError, match="alpha must be in \\[0, 1\\]"):
             SAILLoss(actor, critic, action_spec=SPEC, alpha=bad)
-
 
     def test_alpha_assignment_is_in_place(self):
         loss = make_loss(alpha=1)  # an int must still give a float buffer
@@ -438,19 +420,15 @@ class TestSAILLoss:
         other.load_state_dict(loss.state_dict())
         assert float(other.alpha) == 0.75
 
-
     def test_loss_function_defaults_to_l2(self):
         actor, critic = make_nets()
         assert SAILLoss(actor, critic, action_spec=SPEC).loss_function == "l2"
 
-
     # ------------------------------------------------------------------ bad batches and keys
-
 
     def test_weights_need_the_tag(self):
         with pytest.raises(KeyError, match="is_teacher"):
             make_loss(alpha=0.5)(make_batch(2, 2).exclude("is_teacher"))
-
 
     def test_tag_with_a_trailing_dim_is_accepted(self):
         loss = make_loss(alpha=0.5, policy_noise=0.0)
@@ -458,7 +436,6 @@ class TestSAILLoss:
         ref = loss(batch.clone())["loss_qvalue"]
         batch["is_teacher"] = batch["is_teacher"].unsqueeze(-1)
         torch.testing.assert_close(loss(batch)["loss_qvalue"], ref)
-
 
     def test_truncated_rows_bootstrap_unless_done_is_terminal(self):
         # what load_sb_demonstrations documents for its approximated final next observation:
@@ -473,10 +450,7 @@ class TestSAILLoss:
         loss = make_loss(alpha=0.5, policy_noise=0.0)
         assert loss(batch)["loss_qvalue"] != loss(moved)["loss_qvalue"]
         loss.set_keys(terminated="done")
-        torch.testing.assert_close(
-            loss(batch)["loss_qvalue"], loss(moved)["loss_qvalue"], rtol=0, atol=0
-        )
-
+        torch.testing.assert_close(loss(batch)["loss_qvalue"], loss(moved)["loss_qvalue"], rtol=0, atol=0)
 
     def test_in_keys_order_is_td3_then_tag(self):
         # a set-based merge made this order depend on PYTHONHASHSEED
@@ -487,7 +461,6 @@ class TestSAILLoss:
         loss.set_keys(is_teacher="src")
         assert loss.in_keys == [*td3.in_keys, "src"]
         assert make_loss(mixing="batch").in_keys == td3.in_keys
-
 
     def test_set_keys_is_teacher(self):
         loss = make_loss(alpha=0.3, policy_noise=0.0)
@@ -502,7 +475,6 @@ class TestSAILLoss:
         assert loss.tensor_keys.is_teacher == "is_teacher"
         with pytest.raises(ValueError, match="not an accepted tensordict key"):
             loss.set_keys(teacher_tag="x")
-
 
     def test_soft_update_works_without_warning(self):
         actor, critic = make_nets()
@@ -528,7 +500,6 @@ class TestSAILLoss:
             torch.testing.assert_close(new_target.get(key), old + 0.25)
         assert torch.isfinite(out["loss_qvalue"])
 
-
     # ------------------------------------------------------------------ AlphaScheduler
 
 
@@ -550,12 +521,9 @@ class TestAlphaScheduler:
         other = AlphaScheduler(_Holder(), initial=0.7, final=0.2)
         assert other.step(frames=10, num_promoted=1) == 0.2 and other.switched_at_frame == 10
 
-
     def test_scheduler_linear_values(self):
         holder = _Holder()
-        sched = AlphaScheduler(
-            holder, mode="linear", initial=0.5, final=0.0, anneal_frames=300_000
-        )
+        sched = AlphaScheduler(holder, mode="linear", initial=0.5, final=0.0, anneal_frames=300_000)
         # alpha(f) = 0.5 - 0.5 * min(f / 3e5, 1)
         expected = {
             0: 0.5,
@@ -572,7 +540,6 @@ class TestAlphaScheduler:
         up = AlphaScheduler(_Holder(), mode="linear", initial=0.2, final=0.6, anneal_frames=100)
         assert up.step(frames=25, num_promoted=0) == pytest.approx(0.3)
 
-
     def test_scheduler_constant(self):
         loss = make_loss(alpha=0.5)
         sched = AlphaScheduler(loss, mode="constant", initial=0.0)  # SAIL w/o LfD
@@ -580,7 +547,6 @@ class TestAlphaScheduler:
         assert sched.step(frames=100, num_promoted=5) == 0.0
         keep = AlphaScheduler(_Holder(), mode="constant")  # SAIL w/o adaptation
         assert keep.step(frames=10**6, num_promoted=10) == 0.5 and keep.switched_at_frame is None
-
 
     def test_scheduler_state_dict_round_trip(self):
         sched = AlphaScheduler(_Holder())
@@ -597,11 +563,15 @@ class TestAlphaScheduler:
         # the switch is never undone after a restore
         assert fresh.step(frames=300, num_promoted=1) == 0.0 and fresh.switched_at_frame == 200
 
-
     @pytest.mark.parametrize(
         "kwargs,match",
-        [({"mode": "anneal"}, "mode"), ({"initial": 1.5}, "initial"), ({"final": -0.1}, "final"),
-         ({"mode": "linear"}, "anneal_frames"), ({"mode": "linear", "anneal_frames": 0}, "anneal_frames")],
+        [
+            ({"mode": "anneal"}, "mode"),
+            ({"initial": 1.5}, "initial"),
+            ({"final": -0.1}, "final"),
+            ({"mode": "linear"}, "anneal_frames"),
+            ({"mode": "linear", "anneal_frames": 0}, "anneal_frames"),
+        ],
     )
     def test_scheduler_validation(self, kwargs, match):
         with pytest.raises(ValueError, match=match):

@@ -2,6 +2,7 @@
 
 Both implementations run on copies of the same loss, with the same seed, batches and
 optimizers; losses, gradients and parameters must agree to float rounding."""
+
 from __future__ import annotations
 
 import argparse
@@ -26,12 +27,17 @@ DEVICES = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
 
 def make_loss(spec, *, cls=SAILLoss, device="cpu", activation=nn.ReLU, num_cells=(16, 12), **kwargs):
     actor = TensorDictSequential(
-        TensorDictModule(MLP(in_features=OBS, out_features=ACT, num_cells=list(num_cells),
-                             activation_class=activation), ["observation"], ["param"]),
+        TensorDictModule(
+            MLP(in_features=OBS, out_features=ACT, num_cells=list(num_cells), activation_class=activation),
+            ["observation"],
+            ["param"],
+        ),
         TanhModule(["param"], ["action"], spec=spec),
     )
-    critic = ValueOperator(MLP(in_features=OBS + ACT, out_features=1, num_cells=list(num_cells),
-                               activation_class=activation), in_keys=["action", "observation"])
+    critic = ValueOperator(
+        MLP(in_features=OBS + ACT, out_features=1, num_cells=list(num_cells), activation_class=activation),
+        in_keys=["action", "observation"],
+    )
     kwargs.setdefault("loss_function", "l2")
     loss = cls(actor, critic, action_spec=spec, **kwargs).to(device)
     loss.make_value_estimator(gamma=0.9)
@@ -49,11 +55,14 @@ def make_update(loss, implementation, *, fused_adam=False, **kwargs):
                 buf.add_(0.3 * torch.randn(buf.shape, generator=g).to(buf.device))
     return TD3Update(
         loss,
-        critic_optimizer=torch.optim.Adam(loss.qvalue_network_params.flatten_keys().values(), lr=1e-2,
-                                          fused=fused_adam),
-        actor_optimizer=torch.optim.Adam(loss.actor_network_params.flatten_keys().values(), lr=1e-2,
-                                         fused=fused_adam),
-        target_updater=updater, implementation=implementation, **kwargs)
+        critic_optimizer=torch.optim.Adam(
+            loss.qvalue_network_params.flatten_keys().values(), lr=1e-2, fused=fused_adam
+        ),
+        actor_optimizer=torch.optim.Adam(loss.actor_network_params.flatten_keys().values(), lr=1e-2, fused=fused_adam),
+        target_updater=updater,
+        implementation=implementation,
+        **kwargs,
+    )
 
 
 def make_batch(spec, *, seed, device="cpu", n_teacher=B // 4, steps_key=None, nstep=False):
@@ -61,25 +70,35 @@ def make_batch(spec, *, seed, device="cpu", n_teacher=B // 4, steps_key=None, ns
     g = torch.Generator().manual_seed(seed)
     terminated = torch.rand(B, 1, generator=g) < 0.2
     truncated = torch.rand(B, 1, generator=g) < 0.1
-    batch = TensorDict({
-        "observation": torch.randn(B, OBS, generator=g),
-        "action": spec.low + (spec.high - spec.low) * torch.rand(B, ACT, generator=g),
-        "is_teacher": torch.arange(B) < n_teacher,
-        ("next", "observation"): torch.randn(B, OBS, generator=g),
-        ("next", "reward"): torch.randn(B, 1, generator=g),
-        ("next", "terminated"): terminated,
-        ("next", "truncated"): truncated,
-        ("next", "done"): terminated | truncated,
-    }, [B])
+    batch = TensorDict(
+        {
+            "observation": torch.randn(B, OBS, generator=g),
+            "action": spec.low + (spec.high - spec.low) * torch.rand(B, ACT, generator=g),
+            "is_teacher": torch.arange(B) < n_teacher,
+            ("next", "observation"): torch.randn(B, OBS, generator=g),
+            ("next", "reward"): torch.randn(B, 1, generator=g),
+            ("next", "terminated"): terminated,
+            ("next", "truncated"): truncated,
+            ("next", "done"): terminated | truncated,
+        },
+        [B],
+    )
     if steps_key is not None:
         batch[steps_key] = torch.randint(1, 11, (B, 1), generator=g)
     if nstep:
         terminated_n = terminated | (torch.rand(B, 1, generator=g) < 0.3)  # the window reaches further
         truncated_n = ~terminated_n & (torch.rand(B, 1, generator=g) < 0.1)
-        batch["next_n"] = TensorDict({
-            "observation": torch.randn(B, OBS, generator=g), "reward": 3 * torch.randn(B, 1, generator=g),
-            "terminated": terminated_n, "truncated": truncated_n, "done": terminated_n | truncated_n,
-            "steps_to_next_obs": torch.randint(1, 11, (B, 1), generator=g)}, [B])
+        batch["next_n"] = TensorDict(
+            {
+                "observation": torch.randn(B, OBS, generator=g),
+                "reward": 3 * torch.randn(B, 1, generator=g),
+                "terminated": terminated_n,
+                "truncated": truncated_n,
+                "done": terminated_n | truncated_n,
+                "steps_to_next_obs": torch.randint(1, 11, (B, 1), generator=g),
+            },
+            [B],
+        )
     return batch.to(device)
 
 
@@ -88,8 +107,9 @@ def recording(update):
     grads = []
     for opt in (update.critic_optimizer, update.actor_optimizer):
         params = [p for group in opt.param_groups for p in group["params"]]
-        opt.register_step_pre_hook(lambda *_, params=params: grads.append(
-            [None if p.grad is None else p.grad.clone() for p in params]))
+        opt.register_step_pre_hook(
+            lambda *_, params=params: grads.append([None if p.grad is None else p.grad.clone() for p in params])
+        )
     return grads
 
 
@@ -105,8 +125,10 @@ def run_both(spec, steps=6, *, device="cpu", loss_kwargs=None, batch_kwargs=None
         update = make_update(loss, implementation, **kwargs)
         grads = recording(update)
         torch.manual_seed(1)  # the policy-smoothing noise
-        metrics = [update(make_batch(spec, seed=i, device=device, **(batch_kwargs or {})), update_actor=i % 2 == 0)
-                   for i in range(steps)]
+        metrics = [
+            update(make_batch(spec, seed=i, device=device, **(batch_kwargs or {})), update_actor=i % 2 == 0)
+            for i in range(steps)
+        ]
         out[implementation] = (metrics, grads, loss.state_dict())
     return out
 
@@ -144,8 +166,9 @@ class TestTD3Update:
     @pytest.mark.parametrize("n_teacher", [0, B // 4, B])
     def test_fused_equals_loss_weights(self, n_teacher):
         # Algorithm 1's weighted form, including the one-group edge cases
-        assert_same(run_both(UNIT, loss_kwargs={"mixing": "weights", "alpha": 0.3},
-                             batch_kwargs={"n_teacher": n_teacher}))
+        assert_same(
+            run_both(UNIT, loss_kwargs={"mixing": "weights", "alpha": 0.3}, batch_kwargs={"n_teacher": n_teacher})
+        )
 
     def test_fused_equals_loss_smooth_l1(self):
         assert_same(run_both(UNIT, loss_kwargs={"loss_function": "smooth_l1"}))
@@ -172,21 +195,32 @@ class TestTD3Update:
         for implementation in ("loss", "fused"):
             update = make_update(copy.deepcopy(base), implementation)
             torch.manual_seed(1)
-            out[implementation] = [update(make_batch(UNIT, seed=i, steps_key=("my", "steps")), update_actor=False)
-                                   for i in range(2)]
+            out[implementation] = [
+                update(make_batch(UNIT, seed=i, steps_key=("my", "steps")), update_actor=False) for i in range(2)
+            ]
         for a, b in zip(out["loss"], out["fused"]):
             torch.testing.assert_close(b["loss_qvalue"], a["loss_qvalue"], atol=1e-5, rtol=1e-5)
 
     @pytest.mark.parametrize("device", DEVICES)
-    @pytest.mark.parametrize("loss_kwargs, set_keys", [
-        ({}, None),
-        ({"mixing": "weights", "alpha": 0.3}, None),  # per-row weights in both losses
-        ({"loss_function": "smooth_l1"}, {"terminated": "done"}),  # the example's truncation_is_terminal
-    ])
+    @pytest.mark.parametrize(
+        "loss_kwargs, set_keys",
+        [
+            ({}, None),
+            ({"mixing": "weights", "alpha": 0.3}, None),  # per-row weights in both losses
+            ({"loss_function": "smooth_l1"}, {"terminated": "done"}),  # the example's truncation_is_terminal
+        ],
+    )
     def test_fused_equals_loss_nstep(self, device, loss_kwargs, set_keys):
         # DDPGfD's critic: L_1 + lambda_1 L_n on the same rows
-        out = run_both(UNIT, device=device, loss_kwargs=loss_kwargs, set_keys=set_keys, batch_kwargs={"nstep": True},
-                       nstep_key="next_n", nstep_weight=0.7)
+        out = run_both(
+            UNIT,
+            device=device,
+            loss_kwargs=loss_kwargs,
+            set_keys=set_keys,
+            batch_kwargs={"nstep": True},
+            nstep_key="next_n",
+            nstep_weight=0.7,
+        )
         assert "loss_qvalue_nstep" in out["fused"][0][0]
         assert_same(out)
 
@@ -210,8 +244,9 @@ class TestTD3Update:
         noise = (torch.randn(B, ACT) * 0.2).clamp(-0.5, 0.5)
         next_obs, obs, act = batch["next", "observation"], batch["observation"], batch["action"]
         next_act = (mlp("target_actor_network_params.module.0.module", next_obs).tanh() + noise).clamp(-1, 1)
-        next_q = torch.min(*[mlp("target_qvalue_network_params.module", torch.cat([next_act, next_obs], -1), i)
-                             for i in range(2)])
+        next_q = torch.min(
+            *[mlp("target_qvalue_network_params.module", torch.cat([next_act, next_obs], -1), i) for i in range(2)]
+        )
         y = batch["next", "reward"] + 0.9 * (~batch["next", "terminated"]) * next_q
         q = [mlp("qvalue_network_params.module", torch.cat([act, obs], -1), i) for i in range(2)]
         expected = sum(((qi - y) ** 2).mean() for qi in q)
@@ -243,16 +278,19 @@ class TestTD3Update:
         def target(nxt, noise, gamma):
             next_obs = nxt["observation"]
             next_act = (mlp("target_actor_network_params.module.0.module", next_obs).tanh() + noise).clamp(-1, 1)
-            next_q = torch.min(*[mlp("target_qvalue_network_params.module", torch.cat([next_act, next_obs], -1), i)
-                                 for i in range(2)])
+            next_q = torch.min(
+                *[mlp("target_qvalue_network_params.module", torch.cat([next_act, next_obs], -1), i) for i in range(2)]
+            )
             return nxt["reward"] + gamma * (~nxt["terminated"]) * next_q
 
         torch.manual_seed(5)
         noise_1, noise_n = [(torch.randn(B, ACT) * 0.2).clamp(-0.5, 0.5) for _ in range(2)]
         y_1 = target(batch["next"], noise_1, 0.9)
         y_n = target(batch["next_n"], noise_n, 0.9 ** batch["next_n", "steps_to_next_obs"].float())
-        q = [mlp("qvalue_network_params.module", torch.cat([batch["action"], batch["observation"]], -1), i)
-             for i in range(2)]
+        q = [
+            mlp("qvalue_network_params.module", torch.cat([batch["action"], batch["observation"]], -1), i)
+            for i in range(2)
+        ]
         loss_n = sum(((qi - y_n) ** 2).mean() for qi in q)
         expected = sum(((qi - y_1) ** 2).mean() for qi in q) + 0.7 * loss_n
         torch.manual_seed(5)
@@ -274,7 +312,7 @@ class TestTD3Update:
         after = loss.state_dict()
         for key in before:
             if key.startswith("target_") and key.endswith(("weight", "bias")):
-                source = after[key[len("target_"):]]
+                source = after[key[len("target_") :]]
                 torch.testing.assert_close(after[key], before[key] + 0.05 * (source - before[key]))
 
     @pytest.mark.parametrize("implementation", ["fused", "loss"])
@@ -284,9 +322,14 @@ class TestTD3Update:
         torch.manual_seed(0)
         loss = make_loss(UNIT)
         params = list(loss.actor_network_params.flatten_keys().values())
-        update = TD3Update(loss, critic_optimizer=torch.optim.SGD(loss.qvalue_network_params.flatten_keys().values(), lr=1.0),
-                           actor_optimizer=torch.optim.SGD(params, lr=1.0), target_updater=SoftUpdate(loss, tau=0.05),
-                           implementation=implementation, actor_max_grad_norm=1e-3)
+        update = TD3Update(
+            loss,
+            critic_optimizer=torch.optim.SGD(loss.qvalue_network_params.flatten_keys().values(), lr=1.0),
+            actor_optimizer=torch.optim.SGD(params, lr=1.0),
+            target_updater=SoftUpdate(loss, tau=0.05),
+            implementation=implementation,
+            actor_max_grad_norm=1e-3,
+        )
         before = [p.detach().clone() for p in params]
         update.actor_step(make_batch(UNIT, seed=0))
         moved = torch.cat([(p.detach() - b).flatten() for p, b in zip(params, before)])
@@ -400,9 +443,11 @@ class TestTD3Update:
         renamed.value_estimator.set_keys(value="other_value")
         with pytest.raises(ValueError, match="reads the next value from 'other_value'"):
             make_update(renamed, "fused")
-        for kwargs, match in [({"nstep_key": "next"}, "nstep_key='next' is the 1-step"),
-                              ({"nstep_key": "next_n", "nstep_weight": 0.0}, "lambda_1\\) must be a finite number > 0"),
-                              ({"nstep_key": "next_n", "nstep_weight": float("nan")}, "must be a finite number")]:
+        for kwargs, match in [
+            ({"nstep_key": "next"}, "nstep_key='next' is the 1-step"),
+            ({"nstep_key": "next_n", "nstep_weight": 0.0}, "lambda_1\\) must be a finite number > 0"),
+            ({"nstep_key": "next_n", "nstep_weight": float("nan")}, "must be a finite number"),
+        ]:
             with pytest.raises(ValueError, match=match):
                 make_update(make_loss(UNIT), "loss", **kwargs)
 
@@ -410,9 +455,18 @@ class TestTD3Update:
 class _HostReads(TorchFunctionMode):
     """Records calls that copy a tensor value to the host (a device synchronisation on CUDA)."""
 
-    _SYNCING = {torch.Tensor.item, torch.Tensor.tolist, torch.Tensor.__bool__, torch.Tensor.__int__,
-                torch.Tensor.__float__, torch.Tensor.nonzero, torch.nonzero, torch.masked_select,
-                torch.Tensor.masked_select, torch.Tensor.numpy}
+    _SYNCING = {
+        torch.Tensor.item,
+        torch.Tensor.tolist,
+        torch.Tensor.__bool__,
+        torch.Tensor.__int__,
+        torch.Tensor.__float__,
+        torch.Tensor.nonzero,
+        torch.nonzero,
+        torch.masked_select,
+        torch.Tensor.masked_select,
+        torch.Tensor.numpy,
+    }
 
     def __enter__(self):
         self.calls = []
@@ -423,8 +477,9 @@ class _HostReads(TorchFunctionMode):
         if func in self._SYNCING:
             self.calls.append(func.__name__)
         if func is torch.Tensor.__getitem__ and any(
-                isinstance(i, torch.Tensor) and i.dtype == torch.bool
-                for i in (args[1] if isinstance(args[1], tuple) else (args[1],))):
+            isinstance(i, torch.Tensor) and i.dtype == torch.bool
+            for i in (args[1] if isinstance(args[1], tuple) else (args[1],))
+        ):
             self.calls.append("boolean indexing")
         return func(*args, **kwargs)
 

@@ -1,4 +1,5 @@
 """Tests for the teacher buffer: TrajectoryWriter, its TopK, Union and FIFO writers, TeacherReplayBuffer."""
+
 from __future__ import annotations
 
 import argparse
@@ -8,14 +9,16 @@ from collections import Counter
 
 import pytest
 import torch
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from tensordict import TensorDict
 
 from torchrl_sail import (
+    TRANSITION_KEYS,
     FIFOTrajectoryWriter,
     TeacherReplayBuffer,
+    TopKTeacherReplayBuffer,
     TopKTrajectoryWriter,
-    TRANSITION_KEYS,
     UnionTrajectoryWriter,
 )
 
@@ -169,7 +172,7 @@ class RefUnion:
 
     def demo(self, r, tid, length):
         self.kept.append((float(r), tid, length))
-        self.scores = sorted([*self.scores, float(r)])[-self.k:]
+        self.scores = sorted([*self.scores, float(r)])[-self.k :]
 
     def offer(self, r, tid, length):
         accepted = r > self.threshold
@@ -324,6 +327,33 @@ class TestFIFOTrajectoryWriter:
         assert rb.writer.window == [1.0, 2.0, 3.0]  # the demo's score stays in W_k
 
 
+class TestTopKTeacherReplayBuffer:
+    def test_is_the_composed_buffer(self):
+        rb = TopKTeacherReplayBuffer(
+            k=3, max_trajectory_length=12, batch_size=16, keys=["observation"], rank_key=("next", "reward")
+        )
+        reference = topk(3, length=12, batch_size=16)
+        assert isinstance(rb, TeacherReplayBuffer) and isinstance(rb.writer, TopKTrajectoryWriter)
+        assert (rb.writer.k, rb.writer.max_trajectory_length, rb.writer.capacity) == (3, 12, 36)
+        assert rb.writer.keys == ["observation"] and rb._batch_size == 16
+        for buffer in (rb, reference):
+            buffer.add_demonstrations(make_traj(3.0, 7, code=0))
+            for traj in _history():
+                buffer.extend(traj)
+        assert _state(rb)[:7] == _state(reference)[:7]  # same decisions, window and counts
+        assert codes_of(stored(rb)) == codes_of(stored(reference))
+        assert set(rb.sample().keys()) == {"observation", "index"}
+
+    def test_state_dict_round_trip(self):
+        rb = TopKTeacherReplayBuffer(k=2, max_trajectory_length=12)
+        rb.add_demonstrations(make_traj(3.0, 7, code=0))
+        for traj in _history()[:8]:
+            rb.extend(traj)
+        fresh = TopKTeacherReplayBuffer(k=2, max_trajectory_length=12)
+        fresh.load_state_dict(_roundtrip(rb.state_dict()))
+        assert _state(fresh) == _state(rb)
+
+
 class TestUnionTrajectoryWriter:
     @settings(max_examples=60, deadline=None)
     @given(k=st.integers(1, 4), demos=st.lists(episode, max_size=3), offers=st.lists(episode, max_size=15))
@@ -421,8 +451,9 @@ class TestTrajectoryWriter:
 
     def test_custom_keys_and_rank_key(self):
         keys = ["observation", ("next", "reward"), ("next", "done")]
-        rb = TeacherReplayBuffer(TopKTrajectoryWriter(k=2, max_trajectory_length=8, keys=keys,
-                                                      rank_key="step_count"), batch_size=4)
+        rb = TeacherReplayBuffer(
+            TopKTrajectoryWriter(k=2, max_trajectory_length=8, keys=keys, rank_key="step_count"), batch_size=4
+        )
         rb.add_demonstrations(make_traj(3.0, 4, code=1))
         assert rb.writer.window == [6.0]  # 0 + 1 + 2 + 3
         assert set(rb.sample().keys(True, True)) == set(keys) | {"index"}
@@ -459,14 +490,26 @@ def _history():
 
 
 def _build(kind):
-    return {"fifo": lambda: fifo(3, 25, batch_size=16), "union": lambda: union(3, 300, batch_size=16),
-            "topk": lambda: topk(3, length=12, batch_size=16)}[kind]()
+    return {
+        "fifo": lambda: fifo(3, 25, batch_size=16),
+        "union": lambda: union(3, 300, batch_size=16),
+        "topk": lambda: topk(3, length=12, batch_size=16),
+    }[kind]()
 
 
 def _state(rb):
     w = rb.writer
-    return (w.window, w.threshold, w.returns, w.num_offered, w.num_promoted, w.num_demonstrations,
-            w.num_trajectories, len(rb), codes_of(stored(rb)))
+    return (
+        w.window,
+        w.threshold,
+        w.returns,
+        w.num_offered,
+        w.num_promoted,
+        w.num_demonstrations,
+        w.num_trajectories,
+        len(rb),
+        codes_of(stored(rb)),
+    )
 
 
 def _roundtrip(state):
@@ -503,8 +546,9 @@ class TestTeacherReplayBufferCheckpoint:
     @pytest.mark.parametrize("kind", ["topk", "union", "fifo"])
     def test_mid_episode_checkpoint_completes_like_uninterrupted(self, kind):
         # stream 0: A (7 steps, r=6); stream 1: B (4 steps, r=2) then C (3 steps, r=9)
-        data = torch.stack([make_traj(6.0, 7, code=1),
-                            torch.cat([make_traj(2.0, 4, code=2), make_traj(9.0, 3, code=3)])])
+        data = torch.stack(
+            [make_traj(6.0, 7, code=1), torch.cat([make_traj(2.0, 4, code=2), make_traj(9.0, 3, code=3)])]
+        )
 
         def first_part(rb):
             rb.add_demonstrations(make_traj(1.0, 5, code=0))

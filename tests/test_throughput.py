@@ -1,4 +1,5 @@
 """Pure helpers of ``benchmarks/throughput.py``: aggregation, summary parsing, CLI checks (no training)."""
+
 from __future__ import annotations
 
 import importlib.util
@@ -14,14 +15,34 @@ _spec.loader.exec_module(throughput)
 
 
 def rec(trainer, threads, fps, rnd=0, **extra):
-    return {"trainer": trainer, "threads": threads, "round": rnd, "fps": fps, "ms_update": 10.0,
-            "ms_frame": 1.0, "peak_mb": 500.0, "gradient_steps": 5000, **extra}
+    return {
+        "trainer": trainer,
+        "threads": threads,
+        "round": rnd,
+        "fps": fps,
+        "ms_update": 10.0,
+        "ms_frame": 1.0,
+        "peak_mb": 500.0,
+        "gradient_steps": 5000,
+        **extra,
+    }
 
 
 def test_aggregate_medians_and_ratios_per_thread_count():
-    records = [rec("sail", 1, 40.0, 0), rec("sb3", 1, 100.0, 0), rec("sail", 2, 30.0, 0), rec("sb3", 2, 60.0, 0),
-               rec("sail", 1, 60.0, 1), rec("sb3", 1, 100.0, 1), rec("sail", 2, 30.0, 1), rec("sb3", 2, 60.0, 1),
-               rec("sail", 1, 20.0, 2), rec("sb3", 1, 100.0, 2), rec("sail", 2, 30.0, 2), rec("sb3", 2, 60.0, 2)]
+    records = [
+        rec("sail", 1, 40.0, 0),
+        rec("sb3", 1, 100.0, 0),
+        rec("sail", 2, 30.0, 0),
+        rec("sb3", 2, 60.0, 0),
+        rec("sail", 1, 60.0, 1),
+        rec("sb3", 1, 100.0, 1),
+        rec("sail", 2, 30.0, 1),
+        rec("sb3", 2, 60.0, 1),
+        rec("sail", 1, 20.0, 2),
+        rec("sb3", 1, 100.0, 2),
+        rec("sail", 2, 30.0, 2),
+        rec("sb3", 2, 60.0, 2),
+    ]
     rows = {(r["trainer"], r["threads"]): r for r in throughput.aggregate(records)}
     assert list(rows) == [("sail", 1), ("sb3", 1), ("sail", 2), ("sb3", 2)]  # first-seen order
     assert rows["sail", 1]["fps"] == 40.0 and rows["sail", 1]["runs"] == 3  # median of 40, 60, 20
@@ -32,8 +53,11 @@ def test_aggregate_medians_and_ratios_per_thread_count():
 
 
 def test_aggregate_skips_missing_values_and_missing_sb3():
-    records = [rec("sail", 1, None, 0, ms_update=None), rec("sail", 1, 50.0, 1, ms_update=None),
-               {"trainer": "td3", "threads": 1, "round": 0, "error": "exit 1: boom"}]
+    records = [
+        rec("sail", 1, None, 0, ms_update=None),
+        rec("sail", 1, 50.0, 1, ms_update=None),
+        {"trainer": "td3", "threads": 1, "round": 0, "error": "exit 1: boom"},
+    ]
     rows = {r["trainer"]: r for r in throughput.aggregate(records)}
     assert rows["sail"]["fps"] == 50.0 and rows["sail"]["ms_update"] is None
     assert rows["sail"]["fps_vs_sb3"] is None  # no sb3 run at this thread count
@@ -44,21 +68,31 @@ def test_aggregate_skips_missing_values_and_missing_sb3():
 
 
 def test_record_from_summary_full_and_partial():
-    full = {"train_frames": 5000, "train_seconds": 100.0, "train_frames_per_second": 50.0,
-            "time_seconds": {"collect": 10.0, "update": 80.0, "sample": 5.0},
-            "counts": {"gradient_steps": 5000, "discriminator_steps": 200, "frames": 5000},
-            "peak_memory_mb": 900.0}
+    full = {
+        "train_frames": 5000,
+        "train_seconds": 100.0,
+        "train_frames_per_second": 50.0,
+        "time_seconds": {"collect": 10.0, "update": 80.0, "sample": 5.0},
+        "counts": {"gradient_steps": 5000, "discriminator_steps": 200, "frames": 5000},
+        "peak_memory_mb": 900.0,
+    }
     assert throughput.record_from_summary(full) == {
-        "fps": 50.0, "ms_update": pytest.approx(16.0), "ms_frame": pytest.approx(2.0),
-        "peak_mb": 900.0, "gradient_steps": 5000}
-    partial = throughput.record_from_summary({"train_frames": 5000, "train_seconds": 50.0,
-                                              "time_seconds": {"update": 1.0}, "counts": {"gradient_steps": 0}})
+        "fps": 50.0,
+        "ms_update": pytest.approx(16.0),
+        "ms_frame": pytest.approx(2.0),
+        "peak_mb": 900.0,
+        "gradient_steps": 5000,
+    }
+    partial = throughput.record_from_summary(
+        {"train_frames": 5000, "train_seconds": 50.0, "time_seconds": {"update": 1.0}, "counts": {"gradient_steps": 0}}
+    )
     assert partial == {"fps": 100.0, "ms_update": None, "ms_frame": None, "peak_mb": None, "gradient_steps": 0}
     # without counts["gradient_steps"], the call count of the timed "update" phase
     by_phase = throughput.record_from_summary({"time_seconds": {"update": 2.0}, "counts": {"update": 100}})
     assert by_phase["ms_update"] == pytest.approx(20.0) and by_phase["gradient_steps"] == 100
-    assert throughput.record_from_summary({}) == dict.fromkeys(["fps", "ms_update", "ms_frame", "peak_mb",
-                                                                "gradient_steps"])
+    assert throughput.record_from_summary({}) == dict.fromkeys(
+        ["fps", "ms_update", "ms_frame", "peak_mb", "gradient_steps"]
+    )
 
 
 @pytest.mark.parametrize("frames", ["1500", "0", "-1000"])
@@ -71,7 +105,12 @@ def test_cli_rejects_frames_not_a_multiple_of_1000(frames, capsys):
 def test_cli_defaults_and_commands(tmp_path):
     args = throughput.parse_args(["--threads", "2", "--sail-overrides", "teacher.k=5 optim.lr=3e-4"])
     assert (args.env, args.warmup, args.frames, args.rounds, args.trainers) == (
-        "Hopper-v4", 2000, 5000, 2, ["sail", "td3", "sb3"])
+        "Hopper-v4",
+        2000,
+        5000,
+        2,
+        ["sail", "td3", "sb3"],
+    )
     with pytest.raises(SystemExit):
         throughput.parse_args(["--warmup", "1500"])
     sail = throughput.example_command(args, "sail", 2, tmp_path)
@@ -89,17 +128,21 @@ def test_missing_sb3_names_the_extra(monkeypatch):
 
 
 def test_phases_ms_per_frame_from_a_synthetic_summary():
-    summary = {"time_seconds": {"collect": 2.0, "update": 8.0, "sample": 0.5},
-               "counts": {"frames": 1000, "update": 1000}}
+    summary = {
+        "time_seconds": {"collect": 2.0, "update": 8.0, "sample": 0.5},
+        "counts": {"frames": 1000, "update": 1000},
+    }
     assert throughput.phases_ms_per_frame(summary) == pytest.approx({"collect": 2.0, "update": 8.0, "sample": 0.5})
     assert throughput.phases_ms_per_frame({"time_seconds": {"collect": 1.0}, "counts": {"frames": 0}}) == {}
     assert throughput.phases_ms_per_frame({}) == {}  # a run that ended within warm-up
 
 
 def test_labels_group_rows_and_example_root_runs_that_checkout(tmp_path):
-    records = [rec("sail", 1, 40.0, label="before", phases_ms_per_frame={"update": 20.0}),
-               rec("sail", 1, 80.0, label="after", phases_ms_per_frame={"update": 10.0}),
-               rec("sb3", 1, 100.0, label="after")]
+    records = [
+        rec("sail", 1, 40.0, label="before", phases_ms_per_frame={"update": 20.0}),
+        rec("sail", 1, 80.0, label="after", phases_ms_per_frame={"update": 10.0}),
+        rec("sb3", 1, 100.0, label="after"),
+    ]
     rows = {(r["label"], r["trainer"]): r for r in throughput.aggregate(records)}
     assert rows["before", "sail"]["phases_ms_per_frame"] == {"update": 20.0}
     assert rows["before", "sail"]["fps_vs_sb3"] is None and rows["after", "sail"]["fps_vs_sb3"] == pytest.approx(0.8)

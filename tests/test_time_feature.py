@@ -1,4 +1,5 @@
 """Tests for :class:`torchrl_sail.envs.time_feature.TimeFeature`."""
+
 from __future__ import annotations
 
 import argparse
@@ -31,11 +32,8 @@ from torchrl.envs.utils import check_env_specs
 
 from torchrl_sail import TimeFeature
 
-
 # The paper's tasks are the -v4 MuJoCo envs (obs layout of the teachers' -v2 envs).
-pytestmark = pytest.mark.filterwarnings(
-    "ignore:.*Hopper-v4 is out of date:DeprecationWarning"
-)
+pytestmark = pytest.mark.filterwarnings("ignore:.*Hopper-v4 is out of date:DeprecationWarning")
 
 
 def f32(x: float) -> float:
@@ -53,9 +51,7 @@ class BoundedObsEnv(EnvBase):
     def __init__(self):
         super().__init__(batch_size=torch.Size([]))
         self.observation_spec = Composite(
-            observation=Bounded(
-                low=torch.tensor([-2.0, 0.0]), high=torch.tensor([3.0, 5.0]), shape=(2,)
-            )
+            observation=Bounded(low=torch.tensor([-2.0, 0.0]), high=torch.tensor([3.0, 5.0]), shape=(2,))
         )
         self.action_spec = Bounded(-1.0, 1.0, shape=(1,))
         self.reward_spec = Unbounded(shape=(1,))
@@ -139,9 +135,7 @@ class TestTimeFeature:
             env.close()
 
     def test_trans_serial_env_check(self):
-        env = TransformedEnv(
-            SerialEnv(2, BoundedObsEnv), Compose(StepCounter(), TimeFeature(max_steps=4))
-        )
+        env = TransformedEnv(SerialEnv(2, BoundedObsEnv), Compose(StepCounter(), TimeFeature(max_steps=4)))
         check_env_specs(env)
         assert env.observation_spec["observation"].shape == (2, 3)
 

@@ -1,35 +1,39 @@
 """torchrl_sail: Self-Adaptive Imitation Learning (SAIL) as TorchRL components.
 
 Every public name is importable from the top level, e.g.
-``from torchrl_sail import DelayedRewardTransform, SAILLoss``.
+``from torchrl_sail import DelayedRewardTransform, SAILLoss``. The run folder of the training
+scripts (start, resume, logs, summary) is :mod:`torchrl_sail.runs`; the private TorchRL APIs the
+package relies on are listed in ``torchrl_sail._compat``.
 """
+
 from torchrl_sail.data import (
-    check_demonstration_dims,
+    TRANSITION_KEYS,
     Demonstrations,
-    export_minari_dataset,
     FIFOTrajectoryWriter,
-    load_demonstrations,
-    load_minari_demonstrations,
-    load_sb_demonstrations,
     MixedReplayBuffer,
-    save_demonstrations,
     TeacherReplayBuffer,
+    TopKTeacherReplayBuffer,
     TopKTrajectoryWriter,
     TrajectoryWriter,
     UnionTrajectoryWriter,
-    TRANSITION_KEYS,
+    check_demonstration_dims,
+    export_minari_dataset,
+    load_demonstrations,
+    load_minari_demonstrations,
+    load_sb_demonstrations,
+    save_demonstrations,
 )
 from torchrl_sail.divergence import DivergenceCheck, DivergenceError
 from torchrl_sail.envs import (
     AbsorbingStateTransform,
     DelayedRewardTransform,
     DiscriminatorReward,
-    make_sail_env,
     NStepTransform,
-    nstep_view,
-    observation_normalizer,
     RNDReward,
     TimeFeature,
+    make_sail_env,
+    nstep_view,
+    observation_normalizer,
 )
 from torchrl_sail.modules import Discriminator, DiscriminatorNet, RunningObsNorm
 from torchrl_sail.objectives import AlphaScheduler, DiscriminatorLoss, SAILLoss, TD3Update
@@ -56,6 +60,7 @@ __all__ = [
     "TD3Update",
     "TRANSITION_KEYS",
     "TeacherReplayBuffer",
+    "TopKTeacherReplayBuffer",
     "TimeFeature",
     "TopKTrajectoryWriter",
     "TrajectoryWriter",

@@ -1,4 +1,5 @@
 """Stop a training run at its first non-finite loss or parameter, checked at the logging cadence."""
+
 from __future__ import annotations
 
 from collections.abc import Mapping
@@ -100,10 +101,17 @@ class DivergenceCheck:
         bad = [name for name, ok in zip(tensors, flags.tolist()) if not ok]  # logged tensors come first
         shown = [f"{key}={logged[key].float().reshape(-1)[0].item():g}" if key in logged else key for key in bad[:8]]
         more = f" and {len(bad) - 8} more" if len(bad) > 8 else ""
-        where = (f" Nothing was saved after the last good checkpoint ({checkpoint}): inspect it, or continue it "
-                 f"with other settings (e.g. a lower learning rate) and resume=true.") if checkpoint else ""
+        where = (
+            (
+                f" Nothing was saved after the last good checkpoint ({checkpoint}): inspect it, or continue it "
+                f"with other settings (e.g. a lower learning rate) and resume=true."
+            )
+            if checkpoint
+            else ""
+        )
         raise DivergenceError(
             f"non-finite value at {self.unit} {frame}: {', '.join(shown)}{more} (losses and logged tensors first, "
             f"then parameters).{where}",
-            frame=frame, quantities=bad,
+            frame=frame,
+            quantities=bad,
         )

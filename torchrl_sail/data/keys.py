@@ -1,4 +1,5 @@
 """The transition keys every SAIL data container agrees on (see the README's data conventions)."""
+
 from __future__ import annotations
 
 from tensordict.utils import NestedKey

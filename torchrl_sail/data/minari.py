@@ -3,44 +3,63 @@
 A Minari dataset is a folder ``<root>/<dataset id>/data`` (``root`` is ``MINARI_DATASETS_PATH``,
 default ``~/.minari/datasets``) of whole episodes: ``T + 1`` observations and ``T`` actions,
 rewards, terminations and truncations each. :func:`load_minari_demonstrations` turns one into
-the flat transitions of :mod:`torchrl_sail.data.demonstrations`, :func:`export_minari_dataset`
-writes any demonstrations as one. Both work on local folders only: nothing is downloaded
-(``minari download <id>`` does that; TorchRL's ``MinariExperienceReplay`` downloads as well).
+the flat transitions of :mod:`torchrl_sail.data.episodes` (with the checks every format gets
+there), :func:`export_minari_dataset` writes any demonstrations as one. Both work on local
+folders only: nothing is downloaded (``minari download <id>`` does that; TorchRL's
+``MinariExperienceReplay`` downloads as well).
 
-The ``minari`` package is optional: ``pip install -e '.[minari]'`` (it brings ``h5py``, the
-storage backend Minari uses by default).
+Minari is used through its public API: ``minari.MinariDataset`` to read,
+``minari.create_dataset_from_buffers`` to write, ``minari.namespace.create_namespace`` for the
+namespace folders, ``MINARI_DATASETS_PATH`` to point them at a folder. The dataset and
+per-episode metadata those functions have no argument for go through the dataset's storage
+object, in one function, :func:`_storage_metadata`.
+
+This module imports only the core, :mod:`torchrl_sail.data.episodes`, and registers its reader
+there (``"minari:<dataset id>"`` or a dataset folder). The ``minari`` package is optional:
+``pip install -e '.[minari]'`` (it brings ``h5py``, the storage backend Minari uses by default).
 """
+
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import re
+import shutil
 import warnings
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import torch
-from tensordict import TensorDict, TensorDictBase
+from tensordict import TensorDictBase
 
-from torchrl_sail.data.demonstrations import (
-    _ACTION_ROUNDING,
-    _check_transitions,
-    _json_default,
-    _publish,
-    _TIME_FEATURE_ATOL,
+from torchrl_sail.data.episodes import (
     Demonstrations,
-    load_demonstrations,
+    check_action_bounds,
+    check_finite,
+    check_returns,
+    check_transitions,
+    episodes_to_transitions,
+    json_default,
+    publish_directory,
+    read_demonstrations,
+    register_reader,
+    resolve_time_feature,
 )
 
 __all__ = ["export_minari_dataset", "load_minari_demonstrations"]
 
 #: ``load_demonstrations("minari:<dataset id>")`` reads a Minari dataset by id.
 MINARI_PREFIX = "minari:"
-# Our metadata (the exported demonstrations' own) inside the dataset's metadata.json
+# Our metadata (the exported demonstrations' own) inside the dataset's metadata
 _METADATA_KEY = "torchrl_sail"
 _INSTALL = "pip install -e '.[minari]'"
 # recomputed by the loader, not carried over from the exported metadata
 _RECOMPUTED = ("episode_returns", "episode_lengths", "n_episodes", "n_transitions")
+# Minari's (namespace/)name-v<version>, with the version required (Minari's own parser accepts
+# none, then fails on int(None))
+_DATASET_ID = re.compile(r"(?:(?P<namespace>[-_\w][-_\w/]*[-_\w]+)/)?(?P<name>[-_\w]+?)-v(?P<version>\d+)")
 
 
 def _import_minari():
@@ -48,8 +67,7 @@ def _import_minari():
         import minari
     except ImportError as err:
         raise ImportError(
-            f"Minari datasets need the optional minari package: {_INSTALL} "
-            f"(or pip install 'minari[hdf5]')."
+            f"Minari datasets need the optional minari package: {_INSTALL} (or pip install 'minari[hdf5]')."
         ) from err
     return minari
 
@@ -98,8 +116,13 @@ def _resolve(dataset: str | os.PathLike, root: str | os.PathLike | None) -> Path
     base = minari_datasets_root(root)
     folder = base / dataset
     if not is_minari_dataset(folder):
-        how = ("root=" if root is not None else "MINARI_DATASETS_PATH" if os.environ.get("MINARI_DATASETS_PATH")
-               else "Minari's default; set MINARI_DATASETS_PATH to look elsewhere")
+        how = (
+            "root="
+            if root is not None
+            else "MINARI_DATASETS_PATH"
+            if os.environ.get("MINARI_DATASETS_PATH")
+            else "Minari's default; set MINARI_DATASETS_PATH to look elsewhere"
+        )
         raise FileNotFoundError(
             f"Minari dataset {dataset!r} not found locally: no {folder / 'data'} (ids are looked "
             f"up under {base}, from {how}; nothing is downloaded). Get it with `minari download "
@@ -108,17 +131,42 @@ def _resolve(dataset: str | os.PathLike, root: str | os.PathLike | None) -> Path
     return folder
 
 
-def _time_limit_of(column: np.ndarray, step: np.ndarray) -> int | None:
-    """``T`` if ``column`` is the time feature ``1 - t/T`` of some integer ``T``, else ``None``."""
-    later = step > 0
-    if not later.any() or np.abs(column[~later] - 1.0).max() > _TIME_FEATURE_ATOL:
-        return None
-    slope = (1.0 - column[later]) / step[later]
-    if slope.min() <= 0:
-        return None
-    limit = int(round(1.0 / float(np.median(slope))))
-    error = np.abs(column - (1.0 - step / max(limit, 1))).max()
-    return limit if error <= _TIME_FEATURE_ATOL else None
+@contextlib.contextmanager
+def _datasets_path(root: Path) -> Iterator[None]:
+    """Points Minari's functions at ``root``: they read the datasets folder from ``MINARI_DATASETS_PATH`` only."""
+    previous = os.environ.get("MINARI_DATASETS_PATH")
+    os.environ["MINARI_DATASETS_PATH"] = str(root)
+    try:
+        yield
+    finally:
+        if previous is None:
+            os.environ.pop("MINARI_DATASETS_PATH", None)
+        else:
+            os.environ["MINARI_DATASETS_PATH"] = previous
+
+
+def _storage_metadata(dataset: Any, update: tuple[dict, list[dict]] | None = None) -> tuple[dict, list[dict]]:
+    """The dataset's metadata and per-episode metadata, after writing ``update`` if given.
+
+    The one place this module goes below Minari's top-level functions, to the dataset's storage
+    (``MinariDataset.storage``, a ``MinariStorage``): ``create_dataset_from_buffers`` has no
+    argument for extra dataset metadata (the demonstrations' own, under ``"torchrl_sail"``) or
+    for per-episode metadata (``rewards_sum``, the recorded float64 returns), and
+    ``MinariDataset`` has no getter for either (nor for ``author`` or ``description``).
+
+    Args:
+        dataset (minari.MinariDataset): the dataset.
+        update (tuple, optional): ``(dataset metadata, [per-episode metadata])`` to write first.
+
+    Returns:
+        ``(metadata, episode_metadata)``: Minari's metadata dict (spaces as gymnasium spaces,
+        authors as sets) and one dict per episode.
+    """
+    storage = dataset.storage
+    if update is not None:
+        storage.update_metadata(update[0])
+        storage.update_episode_metadata(update[1])
+    return storage.metadata, list(storage.get_episode_metadata(dataset.episode_indices))
 
 
 def load_minari_demonstrations(
@@ -146,6 +194,7 @@ def load_minari_demonstrations(
     loads as recorded by default (and :func:`~torchrl_sail.check_demonstration_dims` then flags the
     env's extra column), and with ``True`` fits the project's env, as in ``examples/``. A last
     column that is the time feature of another ``T`` is an error in both ``None`` and ``True`` modes.
+    The rule is :func:`~torchrl_sail.data.episodes.resolve_time_feature`'s, the same for every format.
 
     Args:
         dataset: a dataset id (``"sail/Hopper-v4/teacher-v0"``, or ``"minari:<id>"``) looked up
@@ -171,7 +220,8 @@ def load_minari_demonstrations(
         ImportError: ``minari`` is not installed.
         FileNotFoundError: no such local dataset; the message names the id and the folder.
         ValueError: unreadable dataset, a non-vector (dict, tuple, discrete, image) space,
-            inconsistent shapes, an episode that does not end (or ends early) with
+            inconsistent shapes, a NaN or infinity (naming the episode, entry and step), an
+            episode that does not end (or ends early) with
             terminated/truncated, an episode longer than ``max_episode_steps``, actions outside
             the action space, ``rewards_sum`` that are not the sums of the rewards.
 
@@ -209,8 +259,8 @@ def load_minari_demonstrations(
     folder = _resolve(dataset, root)
     where = str(folder)
     try:
-        raw = json.loads((folder / "data" / "metadata.json").read_text())
         minari_dataset = minari.MinariDataset(folder / "data")
+        raw, episode_metadata = _storage_metadata(minari_dataset)
     except Exception as err:  # a damaged folder, an unknown storage format, a missing backend
         if isinstance(err, ImportError):
             raise
@@ -238,6 +288,7 @@ def load_minari_demonstrations(
                 f"(T + 1, {obs_dim}), (T, {act_dim}), (T,), (T,), (T,) with T >= 1 (the dims of "
                 f"the dataset's spaces)."
             )
+        check_finite({"observations": obs, "actions": act, "rewards": rew}, f"{where}: episode {i}", row_name="step")
         done = term.astype(bool) | trunc.astype(bool)
         if not done[-1]:
             raise ValueError(
@@ -254,97 +305,62 @@ def load_minari_demonstrations(
                 f"{where}: episode {i} has {T} steps, more than max_episode_steps={max_episode_steps} "
                 f"(the time limit of the recording)."
             )
-        observations.append(obs.astype(np.float32))
-        actions.append(act.astype(np.float32))
-        rewards.append(rew.astype(np.float32))
+        observations.append(obs)
+        actions.append(act)
+        rewards.append(rew)
         terminations.append(term.astype(bool))
         truncations.append(trunc.astype(bool))
         lengths.append(T)
     if not lengths:
         raise ValueError(f"{where}: the dataset has no episodes.")
 
-    action = np.concatenate(actions)
-    low, high = spaces["action"].low, spaces["action"].high
-    outside = np.maximum(action - high, low - action).max(-1)
-    if outside.max() > _ACTION_ROUNDING:
-        raise ValueError(
-            f"{where}: actions leave the action space {spaces['action']} by {outside.max():.3g} "
-            f"(transition {int(outside.argmax())})."
-        )
-
-    # the T + 1 observations of every episode, with their in-episode index t
-    all_obs = np.concatenate(observations)
-    all_step = np.concatenate([np.arange(T + 1) for T in lengths])
-    is_obs = np.ones(len(all_obs), dtype=bool)
-    is_obs[np.cumsum(np.array(lengths) + 1) - 1] = False  # the final observations
-    is_next = np.roll(is_obs, 1)
-    appended = False
-    if time_feature is not False:
-        column = all_obs[:, -1].astype(np.float64)
-        matches = np.abs(column - (1.0 - all_step / max_episode_steps)).max() <= _TIME_FEATURE_ATOL
-        other = None if matches else _time_limit_of(column, all_step)
-        if other is not None:
-            raise ValueError(
-                f"{where}: the last observation column is the time feature 1 - t/T with T={other}, "
-                f"not max_episode_steps={max_episode_steps}: pass max_episode_steps={other}."
-            )
-        if time_feature and not matches:  # recorded without it: append it
-            feature = (1.0 - all_step / max_episode_steps).astype(np.float32)
-            all_obs = np.concatenate([all_obs, feature[:, None]], axis=1)
-            appended = True
-        time_feature = bool(matches or appended)
-
-    reward = np.concatenate(rewards)
-    starts = np.cumsum([0, *lengths[:-1]])
-    sums = np.add.reduceat(reward.astype(np.float64), starts)
-    returns = sums
-    episode_metadata = minari_dataset.storage.get_episode_metadata(minari_dataset.episode_indices)
+    action, reward = np.concatenate(actions), np.concatenate(rewards).astype(np.float32)
+    space = spaces["action"]
+    check_action_bounds(action, space.low, space.high, where, space=str(space))
+    returns = np.add.reduceat(reward.astype(np.float64), np.cumsum([0, *lengths[:-1]]))
     recorded = [m.get("rewards_sum") for m in episode_metadata]
-    if all(r is not None for r in recorded):
-        # the tolerance of load_sb_demonstrations (float64 sums of rewards stored as float32)
-        recorded = np.asarray(recorded, dtype=np.float64)
-        scale = np.add.reduceat(np.abs(reward.astype(np.float64)), starts)
-        bad = np.abs(recorded - sums) > 1e-3 + 1e-5 * scale
-        if bad.any():
-            ep = int(bad.argmax())
-            raise ValueError(
-                f"{where}: episode {ep} has rewards_sum {recorded[ep]:.6f} but its rewards sum to "
-                f"{sums[ep]:.6f} (corrupt or mis-assembled dataset)."
-            )
-        returns = recorded
+    if recorded and all(r is not None for r in recorded):
+        check_returns(recorded, reward, lengths, where, what="rewards_sum", hint="corrupt or mis-assembled dataset")
+        returns = np.asarray(recorded, dtype=np.float64)
 
-    terminated = torch.as_tensor(np.concatenate(terminations)).unsqueeze(-1)
-    truncated = torch.as_tensor(np.concatenate(truncations)).unsqueeze(-1)
-    n = len(reward)
-    data = TensorDict(
-        {
-            "observation": torch.as_tensor(all_obs[is_obs]),
-            "action": torch.as_tensor(action),
-            "step_count": torch.as_tensor(all_step[is_obs], dtype=torch.int64).unsqueeze(-1),
-            ("next", "observation"): torch.as_tensor(all_obs[is_next]),
-            ("next", "reward"): torch.as_tensor(reward).unsqueeze(-1),
-            ("next", "done"): terminated | truncated,
-            ("next", "terminated"): terminated,
-            ("next", "truncated"): truncated,
-        },
-        batch_size=[n],
+    data = episodes_to_transitions(
+        np.concatenate(observations),
+        action,
+        reward,
+        np.concatenate(terminations),
+        np.concatenate(truncations),
+        lengths,
     )
-    _check_transitions(data, where)
+    data, has_feature, appended = resolve_time_feature(
+        data, max_episode_steps=max_episode_steps, time_feature=time_feature, where=where
+    )
+    check_transitions(data, where)
 
     exported = raw.get(_METADATA_KEY, {})
     metadata = {key: value for key, value in exported.items() if key not in _RECOMPUTED}
     if "source" in exported:
         metadata["exported_from"] = exported["source"]
     env_spec = minari_dataset.spec.env_spec
+    extra = {key: raw[key] for key in ("algorithm_name", "description") if key in raw}
+    if "author" in raw:
+        extra["author"] = sorted(raw["author"])
     metadata.update(
-        format="minari", source=where, dataset_id=raw.get("dataset_id"),
+        format="minari",
+        source=where,
+        dataset_id=minari_dataset.spec.dataset_id,
         **({"env_id": env_spec.id} if env_spec is not None else {}),
-        minari_version=raw.get("minari_version"), data_format=raw.get("data_format"),
-        n_episodes=len(lengths), n_transitions=n, episode_returns=[float(r) for r in returns],
-        episode_lengths=lengths, observation_dim=int(data["observation"].shape[1]), action_dim=act_dim,
-        max_episode_steps=int(max_episode_steps), time_feature=time_feature,
+        minari_version=minari_dataset.spec.minari_version,
+        data_format=raw.get("data_format"),
+        n_episodes=len(lengths),
+        n_transitions=int(data.batch_size[0]),
+        episode_returns=[float(r) for r in returns],
+        episode_lengths=lengths,
+        observation_dim=int(data["observation"].shape[1]),
+        action_dim=act_dim,
+        max_episode_steps=int(max_episode_steps),
+        time_feature=has_feature,
         time_feature_appended=appended,
-        **{key: raw[key] for key in ("algorithm_name", "author", "description") if key in raw},
+        **extra,
     )
     return Demonstrations(data, metadata)
 
@@ -376,8 +392,10 @@ def export_minari_dataset(
     rewards), the demonstrations' metadata into the dataset metadata under ``"torchrl_sail"``.
     Observations (the time feature column included, if any) and actions are stored as float32.
 
-    The dataset is written to a hidden staging folder beside its destination and renamed into
-    place, so a failure leaves nothing half-written (and an overwritten dataset intact).
+    The dataset is created by Minari's ``create_dataset_from_buffers`` in a hidden staging
+    folder beside its destination and renamed into place, so a failure leaves nothing
+    half-written (and an overwritten dataset intact); the namespace folders get Minari's
+    ``namespace_metadata.json`` through ``minari.namespace.create_namespace``.
 
     Args:
         demonstrations: a :class:`~torchrl_sail.Demonstrations`, a flat ``[N]`` transition
@@ -440,19 +458,17 @@ def export_minari_dataset(
     minari = _import_minari()
     import gymnasium as gym
     from gymnasium.envs.registration import EnvSpec
-    from minari.data_collector import EpisodeBuffer
-    from minari.dataset.minari_dataset import parse_dataset_id
-    from minari.dataset.minari_storage import MinariStorage
+    from minari.data_collector import EpisodeBuffer  # the buffers create_dataset_from_buffers takes
+    from minari.namespace import create_namespace, list_local_namespaces
 
-    try:
-        namespace = parse_dataset_id(dataset_id)[0]
-    except (ValueError, TypeError) as err:  # TypeError: no version (minari 0.5 parses int(None))
+    match = _DATASET_ID.fullmatch(dataset_id) if isinstance(dataset_id, str) else None
+    if match is None:
         raise ValueError(
-            f"dataset_id {dataset_id!r} is not (namespace/)name-v<version>, e.g. "
-            f"'sail/Hopper-v4/teacher-v0'."
-        ) from err
+            f"dataset_id {dataset_id!r} is not (namespace/)name-v<version>, e.g. 'sail/Hopper-v4/teacher-v0'."
+        )
+    namespace = match["namespace"]
     if isinstance(demonstrations, (str, os.PathLike)):
-        demonstrations = load_demonstrations(demonstrations, max_episode_steps=max_episode_steps)
+        demonstrations = read_demonstrations(demonstrations, max_episode_steps=max_episode_steps)
     if isinstance(demonstrations, Demonstrations):
         data, meta = demonstrations.data, dict(demonstrations.metadata)
     elif isinstance(demonstrations, TensorDictBase):
@@ -462,16 +478,16 @@ def export_minari_dataset(
     where = f"demonstrations to export as {dataset_id!r}"
     if "source" in meta:
         where += f" (from {meta['source']})"
-    _check_transitions(data, where)
+    check_transitions(data, where)
     data = data.detach().cpu()
     obs, next_obs, action = data["observation"], data["next", "observation"], data["action"]
     if obs.ndim != 2 or action.ndim != 2:
         raise ValueError(
-            f"{where}: 'observation' {tuple(obs.shape)} and 'action' {tuple(action.shape)} must be "
-            f"[N, dim] vectors."
+            f"{where}: 'observation' {tuple(obs.shape)} and 'action' {tuple(action.shape)} must be [N, dim] vectors."
         )
     ends = (data["next", "done"].reshape(-1).nonzero().reshape(-1) + 1).tolist()
     starts = [0, *ends[:-1]]
+    lengths = [e - s for s, e in zip(starts, ends)]
     step_count = data.get("step_count", None)
     for i, (start, end) in enumerate(zip(starts, ends)):
         same = (next_obs[start : end - 1] == obs[start + 1 : end]).all(-1)
@@ -486,17 +502,13 @@ def export_minari_dataset(
                 f"{where}: episode {i} starts at step_count={int(step_count[start].reshape(-1)[0])}, "
                 f"not 0: a Minari episode starts at a reset (export whole episodes)."
             )
-    reward = data["next", "reward"].reshape(-1)
-    sums = [float(r) for r in torch.stack([reward[s:e].double().sum() for s, e in zip(starts, ends)])]
-    returns = sums
+    reward = data["next", "reward"].reshape(-1).double().numpy()
+    returns = np.add.reduceat(reward, starts).tolist()
     recorded = meta.get("episode_returns")
     if recorded is not None and len(recorded) == len(ends):
-        for i, (r, s, e) in enumerate(zip(recorded, starts, ends)):
-            if abs(float(r) - sums[i]) > 1e-3 + 1e-5 * float(reward[s:e].double().abs().sum()):
-                raise ValueError(
-                    f"{where}: episode {i} has recorded return {float(r):.6f} but its rewards sum to "
-                    f"{sums[i]:.6f}: are the rewards delayed? Minari datasets store dense rewards."
-                )
+        check_returns(
+            recorded, reward, lengths, where, hint="are the rewards delayed? Minari datasets store dense rewards"
+        )
         returns = [float(r) for r in recorded]
 
     obs_dim, act_dim = obs.shape[1], action.shape[1]
@@ -527,57 +539,85 @@ def export_minari_dataset(
             )
         action_space = gym.spaces.Box(spaces[1].low, spaces[1].high, (act_dim,), np.float32)
 
-    target = minari_datasets_root(root) / dataset_id
+    base = minari_datasets_root(root)
+    target = base / dataset_id
     if target.exists() and not overwrite:
         raise FileExistsError(
             f"Minari dataset {dataset_id!r} already exists at {target}: pass overwrite=True "
             f"(--overwrite) to replace it, or choose another id or version."
         )
 
-    ours = json.loads(json.dumps({k: v for k, v in meta.items() if k not in _RECOMPUTED},
-                                 default=_json_default(f"{where}: metadata")))
-    dataset_metadata = {
-        "dataset_id": dataset_id,
-        "minari_version": minari.__version__,
-        "description": description or (
+    ours = json.loads(
+        json.dumps({k: v for k, v in meta.items() if k not in _RECOMPUTED}, default=json_default(f"{where}: metadata"))
+    )
+    if description is None:
+        description = (
             f"SAIL demonstrations ({len(ends)} episodes, {len(reward)} transitions) exported by "
             f"torchrl_sail" + (f" from {meta['source']}" if "source" in meta else "")
-        ),
-        _METADATA_KEY: ours,
-    }
-    for key, value in (("algorithm_name", algorithm_name), ("code_permalink", code_permalink)):
-        if value is not None:
-            dataset_metadata[key] = value
-    for key, value in (("author", author), ("author_email", author_email)):
-        if value is not None:
-            dataset_metadata[key] = {value} if isinstance(value, str) else set(value)
+        )
     obs_np, next_np, act_np = obs.float().numpy(), next_obs.float().numpy(), action.float().numpy()
-    rew_np = reward.float().numpy()
+    rew_np = reward.astype(np.float32)
     term_np, trunc_np = (data["next", key].reshape(-1).numpy() for key in ("terminated", "truncated"))
     buffers = [
         EpisodeBuffer(
-            observations=np.concatenate([obs_np[s:e], next_np[e - 1 : e]]), actions=act_np[s:e],
-            rewards=rew_np[s:e], terminations=term_np[s:e], truncations=trunc_np[s:e],
+            observations=np.concatenate([obs_np[s:e], next_np[e - 1 : e]]),
+            actions=act_np[s:e],
+            rewards=rew_np[s:e],
+            terminations=term_np[s:e],
+            truncations=trunc_np[s:e],
         )
         for s, e in zip(starts, ends)
     ]
 
-    def write(staging: Path) -> None:
-        staging.mkdir(parents=True)
-        storage = MinariStorage.new(
-            staging / "data",
-            observation_space=gym.spaces.Box(-np.inf, np.inf, (obs_dim,), np.float32),
-            action_space=action_space, env_spec=env_spec, data_format=data_format,
-        )
-        storage.update_metadata(dataset_metadata)
-        storage.update_episodes(buffers)
-        storage.update_episode_metadata([{"rewards_sum": r} for r in returns])
+    def as_set(value: str | Iterable[str] | None) -> str | set[str] | None:
+        return value if value is None or isinstance(value, str) else set(value)
 
-    _publish(target, write)
-    if namespace is not None:  # as minari.create_namespace: a metadata file per namespace level
-        parts = namespace.split("/")
-        for level in range(1, len(parts) + 1):
-            path = minari_datasets_root(root).joinpath(*parts[:level], "namespace_metadata.json")
-            if not path.exists():
-                path.write_text("{}")
+    def write(staging: Path) -> None:
+        # create_dataset_from_buffers writes <MINARI_DATASETS_PATH>/<dataset_id>: a scratch root
+        # beside the target, whose dataset folder becomes `staging`, swapped in by publish_directory.
+        scratch = staging.with_name(staging.name + ".root")
+        try:
+            with _datasets_path(scratch), warnings.catch_warnings():
+                # Minari warns about every optional field left out (eval_env, author, ...) and
+                # gymnasium that the -v4 envs are out of date
+                warnings.simplefilter("ignore")
+                created = minari.create_dataset_from_buffers(
+                    dataset_id,
+                    buffers,
+                    env=env_spec,
+                    observation_space=gym.spaces.Box(-np.inf, np.inf, (obs_dim,), np.float32),
+                    action_space=action_space,
+                    algorithm_name=algorithm_name,
+                    author=as_set(author),
+                    author_email=as_set(author_email),
+                    code_permalink=code_permalink,
+                    description=description,
+                    data_format=data_format,
+                )
+            _storage_metadata(created, update=({_METADATA_KEY: ours}, [{"rewards_sum": r} for r in returns]))
+            os.replace(scratch / dataset_id, staging)
+        finally:
+            shutil.rmtree(scratch, ignore_errors=True)
+
+    publish_directory(target, write)
+    if namespace is not None:  # the namespace_metadata.json files of Minari's namespace API
+        with _datasets_path(base):
+            if namespace not in list_local_namespaces():
+                create_namespace(namespace)
     return target
+
+
+def _is_minari(path: str | os.PathLike) -> bool:
+    return os.fspath(path).startswith(MINARI_PREFIX) or is_minari_dataset(path)
+
+
+def _load_any_minari(
+    path: str | os.PathLike, *, max_episode_steps: int = 1000, time_feature: bool | None = None
+) -> Demonstrations:
+    by_id = os.fspath(path).startswith(MINARI_PREFIX)  # also from a Path("minari:<id>")
+    return load_minari_demonstrations(
+        os.fspath(path) if by_id else path, max_episode_steps=max_episode_steps, time_feature=time_feature
+    )
+
+
+register_reader("a Minari dataset ('minari:<dataset id>' or its folder)", _is_minari, _load_any_minari)

@@ -7,6 +7,7 @@ batches 256 + 256. This follows TorchRL's :class:`~torchrl.data.OfflineToOnlineR
 concatenated batch), but wraps two buffers the user built instead of owning the agent
 buffer, accepts a teacher share of 0 or 1, and tags each row with its source.
 """
+
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
@@ -143,6 +144,8 @@ def _row_ids(index, source: int) -> torch.Tensor:
     """Ids of the rows sampled from one buffer (``source`` 0: teacher, 1: agent): ``2 * index + source``."""
     if not (isinstance(index, torch.Tensor) and index.dim() == 1):
         shapes = [tuple(i.shape) for i in index] if isinstance(index, (tuple, list)) else getattr(index, "shape", index)
-        raise ValueError(f"MixedReplayBuffer(row_id_key=...) needs flat storages (1-D sample indices); "
-                         f"the {('teacher', 'agent')[source]} buffer sampled indices of shape {shapes}.")
+        raise ValueError(
+            f"MixedReplayBuffer(row_id_key=...) needs flat storages (1-D sample indices); "
+            f"the {('teacher', 'agent')[source]} buffer sampled indices of shape {shapes}."
+        )
     return 2 * index + source

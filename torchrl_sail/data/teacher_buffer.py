@@ -12,9 +12,12 @@ an admitted trajectory goes: :class:`TopKTrajectoryWriter` (keep the K best traj
 default), :class:`UnionTrajectoryWriter` (the paper's literal ``R_T <- R_T U tau``: keep every
 admitted trajectory) and :class:`FIFOTrajectoryWriter` (the authors' code: a ring of transitions).
 :class:`TeacherReplayBuffer` is a :class:`~torchrl.data.TensorDictReplayBuffer` built around
-one of them. (``TensorDictMaxValueWriter`` ranks one storage slot at a time: it cannot hold
-variable-length trajectories in a transition storage nor express the window rule.)
+one of them, and :class:`TopKTeacherReplayBuffer` the paper's buffer in one call (as TorchRL's
+``TensorDictPrioritizedReplayBuffer`` builds its sampler). (``TensorDictMaxValueWriter`` ranks
+one storage slot at a time: it cannot hold variable-length trajectories in a transition storage
+nor express the window rule.)
 """
+
 from __future__ import annotations
 
 import bisect
@@ -23,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 import torch
-from tensordict import pad, TensorDict, TensorDictBase
+from tensordict import TensorDict, TensorDictBase, pad
 from tensordict.utils import NestedKey, unravel_key
 from torchrl.data.replay_buffers import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.data.replay_buffers.samplers import RandomSampler
@@ -34,6 +37,7 @@ from torchrl_sail.data.keys import TRANSITION_KEYS
 __all__ = [
     "FIFOTrajectoryWriter",
     "TeacherReplayBuffer",
+    "TopKTeacherReplayBuffer",
     "TopKTrajectoryWriter",
     "TrajectoryWriter",
     "UnionTrajectoryWriter",
@@ -250,8 +254,7 @@ class TrajectoryWriter(Writer):
             "counts": (self.num_offered, self.num_promoted, self.num_demonstrations),
             "write_count": self._write_count,
             "pending": {
-                b: (sum(c.shape[0] for c in chunks), torch.cat(chunks).to_dict())
-                for b, chunks in self._pending.items()
+                b: (sum(c.shape[0] for c in chunks), torch.cat(chunks).to_dict()) for b, chunks in self._pending.items()
             },
             **{name: getattr(self, name) for name in self._placement_state},
         }
@@ -268,9 +271,7 @@ class TrajectoryWriter(Writer):
         self._next_id = state_dict["next_id"]
         self.num_offered, self.num_promoted, self.num_demonstrations = state_dict["counts"]
         self._write_count = state_dict["write_count"]
-        self._pending = {
-            b: [TensorDict(data, batch_size=[n])] for b, (n, data) in state_dict["pending"].items()
-        }
+        self._pending = {b: [TensorDict(data, batch_size=[n])] for b, (n, data) in state_dict["pending"].items()}
         for name in self._placement_state:
             setattr(self, name, state_dict[name])
         self._stored_rows = None
@@ -510,3 +511,63 @@ class TeacherReplayBuffer(TensorDictReplayBuffer):
             demonstrations = self._transform.inv(demonstrations)
         with self._replay_lock, self._write_lock:
             return self._writer.add_demonstrations(demonstrations)
+
+
+class TopKTeacherReplayBuffer(TeacherReplayBuffer):
+    """SAIL's teacher buffer as the paper describes it: the ``K`` best trajectories, threshold ``C = min W_k``.
+
+    A :class:`TeacherReplayBuffer` over a :class:`TopKTrajectoryWriter`, built from the
+    writer's arguments, as TorchRL's ``TensorDictPrioritizedReplayBuffer`` is a
+    ``TensorDictReplayBuffer`` over a ``PrioritizedSampler``. Seed it with
+    :meth:`~TeacherReplayBuffer.add_demonstrations`, give it every collector batch with
+    ``extend`` (a trajectory is promoted when its reward ``r_e`` beats ``C``), sample it like any
+    replay buffer, and read the rule's state from ``rb.writer``.
+
+    Keyword Args:
+        k (int): number of trajectories kept, the window ``W_k``. Defaults to ``10`` (the authors').
+        max_trajectory_length (int): the longest trajectory accepted. Defaults to ``1000``.
+        keys (sequence of NestedKey, optional): the entries stored per transition. Defaults
+            to :data:`~torchrl_sail.TRANSITION_KEYS`.
+        rank_key (NestedKey): the per-step entry summed into ``r_e``. Defaults to ``("next", "reward")``.
+        done_key (NestedKey): the end-of-episode flag. Defaults to ``("next", "done")``.
+        device (torch.device or str): device of the storage. Defaults to ``"cpu"``.
+        **kwargs: other :class:`~torchrl.data.TensorDictReplayBuffer` arguments
+            (``batch_size``, ``transform``, ``generator``...).
+
+    Examples:
+        >>> import torch
+        >>> from tensordict import TensorDict
+        >>> from torchrl_sail import TopKTeacherReplayBuffer
+        >>> def episode(r_e, T=4):
+        ...     reward, done = torch.zeros(T, 1), torch.zeros(T, 1, dtype=torch.bool)
+        ...     reward[-1], done[-1] = r_e, True  # the delayed reward, at the last step
+        ...     return TensorDict({"observation": torch.randn(T, 3), "action": torch.zeros(T, 2),
+        ...         ("next", "observation"): torch.randn(T, 3), ("next", "reward"): reward,
+        ...         ("next", "done"): done, ("next", "terminated"): done.clone(),
+        ...         ("next", "truncated"): torch.zeros_like(done)}, batch_size=[T])
+        >>> rb = TopKTeacherReplayBuffer(k=2, max_trajectory_length=10, batch_size=8)
+        >>> rb.add_demonstrations(episode(100.0))
+        1
+        >>> for r_e in (90.0, 120.0, 130.0):  # 90 < C = 100: rejected; 130 evicts the demonstration
+        ...     _ = rb.extend(episode(r_e))
+        >>> rb.writer.window, rb.writer.threshold, len(rb)
+        ([120.0, 130.0], 120.0, 8)
+        >>> rb.sample()["observation"].shape
+        torch.Size([8, 3])
+    """
+
+    def __init__(
+        self,
+        *,
+        k: int = 10,
+        max_trajectory_length: int = 1000,
+        keys: list[NestedKey] | None = None,
+        rank_key: NestedKey = ("next", "reward"),
+        done_key: NestedKey = ("next", "done"),
+        device="cpu",
+        **kwargs,
+    ) -> None:
+        writer = TopKTrajectoryWriter(
+            k=k, max_trajectory_length=max_trajectory_length, keys=keys, rank_key=rank_key, done_key=done_key
+        )
+        super().__init__(writer, device=device, **kwargs)

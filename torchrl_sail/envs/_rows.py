@@ -1,4 +1,5 @@
 """Row-wise transforms of a block of batches compute once per distinct stored row."""
+
 from __future__ import annotations
 
 import torch

@@ -1,4 +1,5 @@
 """Spec helper shared by the transforms that append a column to an observation."""
+
 from __future__ import annotations
 
 import torch
@@ -12,9 +13,15 @@ def append_unit_column(spec: TensorSpec, *, owner: str, key) -> TensorSpec:
     if isinstance(spec, Bounded):
         low, high = spec.space.low, spec.space.high
         col = torch.zeros((*low.shape[:-1], 1), dtype=low.dtype, device=low.device)
-        return Bounded(low=torch.cat([low, col], -1), high=torch.cat([high, col + 1], -1),
-                       shape=shape, dtype=spec.dtype, device=spec.device)
+        return Bounded(
+            low=torch.cat([low, col], -1),
+            high=torch.cat([high, col + 1], -1),
+            shape=shape,
+            dtype=spec.dtype,
+            device=spec.device,
+        )
     if isinstance(spec, Unbounded):
         return Unbounded(shape=shape, dtype=spec.dtype, device=spec.device)
-    raise TypeError(f"{owner} extends Bounded and Unbounded observation specs only; "
-                    f"{key!r} has a {type(spec).__name__} spec.")
+    raise TypeError(
+        f"{owner} extends Bounded and Unbounded observation specs only; {key!r} has a {type(spec).__name__} spec."
+    )

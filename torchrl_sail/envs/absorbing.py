@@ -8,14 +8,15 @@ itself and is bootstrapped through, so the value of ending an episode is learned
 discriminator's reward at ``s_a`` like any other. Time-limit truncations are not
 terminations and keep their next observation.
 """
+
 from __future__ import annotations
 
 import torch
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModule
 from tensordict.utils import NestedKey
-from torchrl.data.tensor_specs import TensorSpec
 from torch import nn
+from torchrl.data.tensor_specs import TensorSpec
 from torchrl.envs.transforms import Transform
 
 from torchrl_sail.envs._specs import append_unit_column
@@ -147,8 +148,9 @@ class AbsorbingStateTransform(Transform):
             >>> mask(td)["action"].squeeze(-1).tolist()
             [1.0, 0.0]
         """
-        return TensorDictModule(_ZeroAtAbsorbing(), in_keys=[self.action_key, self.observation_key],
-                                out_keys=[self.action_key])
+        return TensorDictModule(
+            _ZeroAtAbsorbing(), in_keys=[self.action_key, self.observation_key], out_keys=[self.action_key]
+        )
 
     def _apply_transform(self, obs: torch.Tensor) -> torch.Tensor:
         return torch.cat([obs, obs.new_zeros(*obs.shape[:-1], 1)], dim=-1)
@@ -197,8 +199,12 @@ class AbsorbingStateTransform(Transform):
         loop.set(("next", self.observation_key), absorbing.expand_as(loop.get(self.observation_key)).clone())
         action = loop.get(self.action_key)
         spec = self.absorbing_action_spec
-        loop.set(self.action_key, torch.zeros_like(action) if spec is None
-                 else spec.rand(action.shape[:-1]).to(device=action.device, dtype=action.dtype))
+        loop.set(
+            self.action_key,
+            torch.zeros_like(action)
+            if spec is None
+            else spec.rand(action.shape[:-1]).to(device=action.device, dtype=action.dtype),
+        )
         loop.set(("next", self.reward_key), torch.zeros_like(loop.get(("next", self.reward_key))))
         loop.get(("next", "done")).fill_(True)
         if not self.bootstrap:
@@ -218,5 +224,7 @@ class AbsorbingStateTransform(Transform):
         return observation_spec
 
     def __repr__(self) -> str:
-        return (f"{type(self).__name__}(observation_key={self.observation_key!r}, bootstrap={self.bootstrap}, "
-                f"random_action={self.absorbing_action_spec is not None})")
+        return (
+            f"{type(self).__name__}(observation_key={self.observation_key!r}, bootstrap={self.bootstrap}, "
+            f"random_action={self.absorbing_action_spec is not None})"
+        )

@@ -7,16 +7,18 @@ ends. The MuJoCo benchmarks are dense, so this module turns them into that setti
 a TorchRL :class:`~torchrl.envs.transforms.Transform` that works in an environment
 (single, serial or parallel, with partial resets) and offline on collected trajectories.
 """
+
 from __future__ import annotations
 
 from collections.abc import Sequence
 
 import torch
 from tensordict import TensorDictBase, unravel_key
-from tensordict.utils import expand_as_right, NestedKey
+from tensordict.utils import NestedKey, expand_as_right
 from torchrl.data.tensor_specs import Composite, TensorSpec, Unbounded
 from torchrl.envs.transforms import Transform
-from torchrl.envs.transforms.utils import _get_reset
+
+from torchrl_sail._compat import filtered_reset_keys, reset_mask
 
 __all__ = ["DelayedRewardTransform"]
 
@@ -126,9 +128,7 @@ class DelayedRewardTransform(Transform):
         return_key = unravel_key(return_key)
         if return_key == reward_key:
             # The learner reads reward_key: the dense return must not end up there.
-            raise ValueError(
-                f"return_key and reward_key must differ, both are {reward_key!r}."
-            )
+            raise ValueError(f"return_key and reward_key must differ, both are {reward_key!r}.")
         super().__init__(in_keys=[reward_key], out_keys=[reward_key, return_key])
         self.scale = float(scale)
         self.rounding = rounding
@@ -147,7 +147,7 @@ class DelayedRewardTransform(Transform):
                     "reset_keys not provided and no parent env found: pass "
                     "reset_keys=['_reset'] when using the transform without an env."
                 )
-            reset_keys = list(parent._filtered_reset_keys)
+            reset_keys = filtered_reset_keys(parent)
             self._reset_keys = reset_keys
         return reset_keys
 
@@ -168,10 +168,8 @@ class DelayedRewardTransform(Transform):
             value = torch.where(close, nearest, value).floor()
         return value
 
-    def _reset(
-        self, tensordict: TensorDictBase, tensordict_reset: TensorDictBase
-    ) -> TensorDictBase:
-        _reset = _get_reset(self.reset_keys[0], tensordict)
+    def _reset(self, tensordict: TensorDictBase, tensordict_reset: TensorDictBase) -> TensorDictBase:
+        _reset = reset_mask(self.reset_keys[0], tensordict)
         value = tensordict.get(self.return_key, None)
         if value is None:
             value = self._return_spec().zero()
@@ -186,9 +184,7 @@ class DelayedRewardTransform(Transform):
     ) -> TensorDictBase:
         return self._reset(tensordict, tensordict_reset)
 
-    def _step(
-        self, tensordict: TensorDictBase, next_tensordict: TensorDictBase
-    ) -> TensorDictBase:
+    def _step(self, tensordict: TensorDictBase, next_tensordict: TensorDictBase) -> TensorDictBase:
         reward = next_tensordict[self.reward_key]
         # 0.0 when the input was not produced by reset (as RewardSum does).
         episode_return = tensordict.get(self.return_key, 0.0) + reward.to(torch.float64)
@@ -251,9 +247,7 @@ class DelayedRewardTransform(Transform):
         # shape and device are kept.
         spec = reward_spec[self.reward_key]
         if not isinstance(spec, Unbounded):
-            reward_spec[self.reward_key] = Unbounded(
-                shape=spec.shape, dtype=spec.dtype, device=spec.device
-            )
+            reward_spec[self.reward_key] = Unbounded(shape=spec.shape, dtype=spec.dtype, device=spec.device)
         return reward_spec
 
     def __repr__(self) -> str:

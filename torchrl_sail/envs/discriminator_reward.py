@@ -257,9 +257,7 @@ class DiscriminatorReward(Transform):
         return tensordict
 
     @torch.no_grad()
-    def _step(
-        self, tensordict: TensorDictBase, next_tensordict: TensorDictBase
-    ) -> TensorDictBase:
+    def _step(self, tensordict: TensorDictBase, next_tensordict: TensorDictBase) -> TensorDictBase:
         logit = self._logit(tensordict)
         next_tensordict.set(self.out_key, self._reward(logit, next_tensordict, self.out_key))
         return next_tensordict
@@ -278,7 +276,5 @@ class DiscriminatorReward(Transform):
                     device = reward_spec[reward_key].device
                     break
         # softplus keeps the logit's dtype, i.e. the discriminator's parameter dtype.
-        reward_spec[out_key] = Unbounded(
-            shape=shape, device=device, dtype=self.discriminator.module.dtype
-        )
+        reward_spec[out_key] = Unbounded(shape=shape, device=device, dtype=self.discriminator.module.dtype)
         return reward_spec

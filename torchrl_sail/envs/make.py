@@ -4,6 +4,7 @@ One factory so that the training example, the teacher recorder, the evaluation e
 users' pipelines build exactly the same observation layout (with the time feature the
 paper's teacher files carry) and the same trajectory-wise reward.
 """
+
 from __future__ import annotations
 
 import difflib
@@ -11,8 +12,16 @@ import difflib
 import gymnasium as gym
 import numpy as np
 from tensordict.utils import NestedKey
-from torchrl.envs import (ClipTransform, Compose, DoubleToFloat, GymEnv, InitTracker, StepCounter,
-                          TransformedEnv, VecNormV2)
+from torchrl.envs import (
+    ClipTransform,
+    Compose,
+    DoubleToFloat,
+    GymEnv,
+    InitTracker,
+    StepCounter,
+    TransformedEnv,
+    VecNormV2,
+)
 from torchrl.record.recorder import PixelRenderTransform
 
 from torchrl_sail.envs.absorbing import AbsorbingStateTransform
@@ -44,6 +53,8 @@ def make_sail_env(
     absorbing_state: bool = False,
     render_size: tuple[int, int] | None = None,
     normalized_observation_key: NestedKey | None = None,
+    env_kwargs: dict | None = None,
+    render_camera: str | None = "track",
     device: str = "cpu",
 ) -> TransformedEnv:
     """Builds ``GymEnv(env_name)`` with the SAIL transforms.
@@ -86,10 +97,18 @@ def make_sail_env(
             episodes would be normalised far into the clip). ``"observation"`` stays raw: it is
             what the demonstrations hold and what a discriminator compares them with. Find the
             normaliser with :func:`observation_normalizer`. Defaults to ``None`` (none).
+        env_kwargs (dict, optional): keyword arguments of ``gymnasium.make``, e.g.
+            ``{"use_contact_forces": True}`` for ``Ant-v4``. Defaults to ``None`` (none).
+        render_camera (str, optional): with ``render_size``, the model camera to render from.
+            ``"track"``, the default, follows the body in gymnasium's MuJoCo models (Hopper,
+            Walker2d, HalfCheetah, Swimmer, Ant); a model without that camera falls back to
+            gymnasium's free camera. ``None``: gymnasium's default view. Ignored for non-MuJoCo
+            envs. Defaults to ``"track"``.
         device (str, optional): device of the env outputs. Defaults to ``"cpu"``.
 
     Raises:
-        ValueError: for an unknown env name (with the closest registered names).
+        ValueError: for an unknown env name (with the closest registered names), or
+            ``env_kwargs`` that ``gymnasium.make`` rejects (naming them).
 
     Examples:
         >>> from torchrl_sail.envs import make_sail_env, observation_normalizer
@@ -119,13 +138,19 @@ def make_sail_env(
         transforms.append(DelayedRewardTransform(reward_scale, rounding=rounding))
     if absorbing_state:
         transforms.append(AbsorbingStateTransform())
-    if render_size is None:
-        return TransformedEnv(GymEnv(env_name, device=device), Compose(*transforms))
-    width, height = render_size
-    # MuJoCo returns a vertically flipped view (negative strides): copy it into a plain array
-    transforms.append(PixelRenderTransform(out_keys=["pixels"], preproc=np.ascontiguousarray))
-    return TransformedEnv(GymEnv(env_name, device=device, render_mode="rgb_array", width=width, height=height),
-                          Compose(*transforms))
+    kwargs = dict(env_kwargs or {})
+    if render_size is not None:
+        width, height = render_size
+        kwargs.update(render_mode="rgb_array", width=width, height=height)
+        if render_camera is not None and "mujoco" in str(gym.spec(env_name).entry_point):
+            kwargs["camera_name"] = render_camera
+        # MuJoCo returns a vertically flipped view (negative strides): copy it into a plain array
+        transforms.append(PixelRenderTransform(out_keys=["pixels"], preproc=np.ascontiguousarray))
+    try:
+        base = GymEnv(env_name, device=device, **kwargs)
+    except TypeError as err:  # gymnasium.make passes unknown kwargs on to the env's __init__
+        raise ValueError(f"gymnasium.make({env_name!r}) rejects env_kwargs={dict(env_kwargs or {})}: {err}") from err
+    return TransformedEnv(base, Compose(*transforms))
 
 
 def observation_normalizer(env: TransformedEnv) -> VecNormV2 | None:

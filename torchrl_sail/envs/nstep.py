@@ -10,13 +10,15 @@ an n-step TD loss *on the same sampled transitions*: each stored transition need
 default. :func:`nstep_view` turns a batch into the n-step transition a TorchRL value
 estimator reads.
 """
+
 from __future__ import annotations
 
 import torch
 from tensordict import TensorDictBase, unravel_key
 from tensordict.utils import NestedKey
-from torchrl.data.postprocs.postprocs import _multi_step_func
 from torchrl.envs.transforms import MultiStepTransform
+
+from torchrl_sail._compat import multi_step
 
 __all__ = ["NStepTransform", "nstep_view"]
 
@@ -126,11 +128,18 @@ class NStepTransform(MultiStepTransform):
         reward_key = self.reward_keys[0]
         source = data.select(*{("next", key) for key in (reward_key, self.done_key, *self.keys)})
         # done_keys=[]: the done flags are gathered at the window's end like the observation
-        out = _multi_step_func(source, done_key=self.done_key, done_keys=[], reward_keys=[reward_key], mask_key=None,
-                               n_steps=self.n_steps, gamma=self.gamma)
+        out = multi_step(
+            source,
+            done_key=self.done_key,
+            done_keys=[],
+            reward_keys=[reward_key],
+            mask_key=None,
+            n_steps=self.n_steps,
+            gamma=self.gamma,
+        )
         view = out.get("next").select(reward_key, *self.keys)
         steps = out.get(_STEPS)
-        view.set(_STEPS, steps.reshape(*data.batch_size, *view.get(reward_key).shape[data.batch_dims:]))
+        view.set(_STEPS, steps.reshape(*data.batch_size, *view.get(reward_key).shape[data.batch_dims :]))
         data = data.copy()  # a new container: the caller's tensordict is not written
         data.set(self.out_key, view)
         return data
@@ -142,6 +151,7 @@ class NStepTransform(MultiStepTransform):
         return total
 
     def _inv_call(self, tensordict: TensorDictBase) -> TensorDictBase:
+        # MultiStepTransform's private validation (torchrl_sail._compat.SUBCLASS_HOOKS)
         if not self._validated:
             self._validate()
         total = self._append_tensordict(tensordict)
@@ -159,8 +169,10 @@ class NStepTransform(MultiStepTransform):
         done = trajectories.get(("next", self.done_key))
         last = done.reshape(*trajectories.batch_size, -1)[..., -1, :].any(-1)
         if not bool(last.all()):
-            raise ValueError(f"NStepTransform.apply_to_trajectories needs whole episodes: a stream does not end "
-                             f"with ('next', {self.done_key!r})=True. Use inv() for a stream that goes on.")
+            raise ValueError(
+                f"NStepTransform.apply_to_trajectories needs whole episodes: a stream does not end "
+                f"with ('next', {self.done_key!r})=True. Use inv() for a stream that goes on."
+            )
         return self._nstep(trajectories)
 
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
@@ -179,8 +191,9 @@ def _nested(prefix: NestedKey, key: NestedKey) -> tuple:
     return (*prefix, *(key if isinstance(key, tuple) else (key,)))
 
 
-def nstep_view(batch: TensorDictBase, nstep_key: NestedKey = "next_n", *,
-               steps_key: NestedKey = _STEPS) -> TensorDictBase:
+def nstep_view(
+    batch: TensorDictBase, nstep_key: NestedKey = "next_n", *, steps_key: NestedKey = _STEPS
+) -> TensorDictBase:
     """``batch`` as its n-step transition: ``"next"`` is ``batch[nstep_key]``, ``steps_key`` its step count.
 
     The root entries (observation, action, tags, weights) are shared with ``batch``; ``"next"``

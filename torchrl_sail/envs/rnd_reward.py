@@ -6,6 +6,7 @@ SAIL's curiosity variant (the paper's Table 1) adds a random network distillatio
 an off-policy learner replays a transition long after, when the predictor has learned it, so
 the bonus must be recomputed at sample time as the discriminator reward is.
 """
+
 from __future__ import annotations
 
 import torch
@@ -69,9 +70,17 @@ class RNDReward(RNDTransform):
         True
     """
 
-    def __init__(self, target_network: nn.Module, predictor_network: nn.Module, *, coef: float = 1.0,
-                 reward_key: NestedKey = "reward", chunk_size: int = 4096, row_id_key: NestedKey | None = None,
-                 **kwargs) -> None:
+    def __init__(
+        self,
+        target_network: nn.Module,
+        predictor_network: nn.Module,
+        *,
+        coef: float = 1.0,
+        reward_key: NestedKey = "reward",
+        chunk_size: int = 4096,
+        row_id_key: NestedKey | None = None,
+        **kwargs,
+    ) -> None:
         if chunk_size < 1:
             raise ValueError(f"chunk_size must be >= 1, got {chunk_size}.")
         super().__init__(target_network, predictor_network, **kwargs)
@@ -87,13 +96,13 @@ class RNDReward(RNDTransform):
         obs = obs.reshape(-1, obs.shape[-1]).float()
         out = torch.empty(obs.shape[0], 1, device=obs.device)
         for start in range(0, obs.shape[0], self.chunk_size):
-            x = obs[start:start + self.chunk_size]
+            x = obs[start : start + self.chunk_size]
             if self.obs_rms is not None:
                 x = self.obs_rms.normalize(x).clamp(-self.obs_clip, self.obs_clip)
             error = (self.predictor_network(x) - self.target_network(x)).pow(2).mean(dim=-1, keepdim=True)
             if self.reward_rms is not None:
                 error = (error / self.reward_rms.var.clamp_min(1e-8).sqrt()).clamp(-self.reward_clip, self.reward_clip)
-            out[start:start + self.chunk_size] = error
+            out[start : start + self.chunk_size] = error
         return out.reshape(*lead, 1)
 
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:

@@ -7,6 +7,7 @@ The published teacher ``.npz`` files store it, so an actor or discriminator that
 those demonstrations needs the same column on the env observations. This module appends it
 from the step count that TorchRL's :class:`~torchrl.envs.StepCounter` already keeps.
 """
+
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -92,8 +93,7 @@ class TimeFeature(Transform):
         if len(self.in_keys) != len(self.out_keys):
             # zip would silently drop the extra in_keys
             raise ValueError(
-                f"out_keys needs one entry per in_key, got in_keys={self.in_keys} "
-                f"and out_keys={self.out_keys}."
+                f"out_keys needs one entry per in_key, got in_keys={self.in_keys} and out_keys={self.out_keys}."
             )
         self.max_steps = max_steps
         self.step_count_key = unravel_key(step_count_key)
@@ -114,9 +114,7 @@ class TimeFeature(Transform):
     def _call(self, next_tensordict: TensorDictBase) -> TensorDictBase:
         return self._append(next_tensordict)
 
-    def _reset(
-        self, tensordict: TensorDictBase, tensordict_reset: TensorDictBase
-    ) -> TensorDictBase:
+    def _reset(self, tensordict: TensorDictBase, tensordict_reset: TensorDictBase) -> TensorDictBase:
         return self._append(tensordict_reset)
 
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:

@@ -98,8 +98,7 @@ class RunningObsNorm(nn.Module):
         if epsilon <= 0 or min_var < 0:
             # epsilon is the prior count (0 gives NaN statistics), min_var the variance floor
             raise ValueError(
-                f"RunningObsNorm needs epsilon > 0 and min_var >= 0, got epsilon={epsilon} "
-                f"and min_var={min_var}."
+                f"RunningObsNorm needs epsilon > 0 and min_var >= 0, got epsilon={epsilon} and min_var={min_var}."
             )
         self.shape = torch.Size(shape)
         self.min_var = float(min_var)
@@ -203,9 +202,7 @@ class DiscriminatorNet(nn.Module):
         super().__init__()
         self.observation_dim = observation_dim
         self.action_dim = action_dim
-        self.obs_norm = (
-            RunningObsNorm(observation_dim) if normalize_observations else None
-        )
+        self.obs_norm = RunningObsNorm(observation_dim) if normalize_observations else None
         self.mlp = MLP(
             in_features=observation_dim + action_dim,
             out_features=1,
@@ -311,4 +308,3 @@ class Discriminator(TensorDictModule):
     def net(self) -> DiscriminatorNet:
         """The wrapped :class:`DiscriminatorNet`."""
         return self.module
-

@@ -1,4 +1,5 @@
 """Losses: SAIL's alpha-mixed TD3 loss, its alpha schedule, the discriminator loss, and the TD3 step."""
+
 from torchrl_sail.objectives.alpha import AlphaScheduler
 from torchrl_sail.objectives.discriminator import DiscriminatorLoss
 from torchrl_sail.objectives.sail import SAILLoss

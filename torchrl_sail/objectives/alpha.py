@@ -6,6 +6,7 @@ the first agent trajectory promoted into the teacher buffer (its ``LinearSchedul
 but never used). :class:`AlphaScheduler` drives ``loss.alpha`` the way TorchRL's target
 updaters drive target parameters: built on the loss, stepped from the training loop.
 """
+
 from __future__ import annotations
 
 from typing import Any

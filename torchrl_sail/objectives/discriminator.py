@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import torch
 import torch.nn.functional as F
 from tensordict import TensorDict, TensorDictBase
-from tensordict.nn import dispatch, TensorDictModule
+from tensordict.nn import TensorDictModule, dispatch
 from tensordict.utils import NestedKey
 from torchrl.objectives import LossModule
 
@@ -230,9 +230,7 @@ class DiscriminatorLoss(LossModule):
     def in_keys(self, values):
         self._in_keys = values
 
-    def _split_rows(
-        self, tensordict: TensorDictBase
-    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    def _split_rows(self, tensordict: TensorDictBase) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         obs_key, act_key = self.discriminator.in_keys
         tag = tensordict[self.tensor_keys.is_teacher]
         # A batch without one of the classes would give a NaN loss (mean over no rows).
@@ -266,9 +264,7 @@ class DiscriminatorLoss(LossModule):
 
         loss_bce = F.binary_cross_entropy_with_logits(
             logits_teacher, torch.ones_like(logits_teacher)
-        ) + F.binary_cross_entropy_with_logits(
-            logits_agent, torch.zeros_like(logits_agent)
-        )
+        ) + F.binary_cross_entropy_with_logits(logits_agent, torch.zeros_like(logits_agent))
         entropy = _bernoulli_entropy(logits).mean()
         grad_penalty = self._gradient_penalty(features[tag], features[~tag])
 
@@ -295,9 +291,7 @@ class DiscriminatorLoss(LossModule):
             batch_size=[],
         )
 
-    def _gradient_penalty(
-        self, features_teacher: torch.Tensor, features_agent: torch.Tensor
-    ) -> torch.Tensor:
+    def _gradient_penalty(self, features_teacher: torch.Tensor, features_agent: torch.Tensor) -> torch.Tensor:
         n = min(features_teacher.shape[0], features_agent.shape[0])
         features_teacher = features_teacher[:n].detach()
         features_agent = features_agent[:n].detach()
@@ -307,11 +301,7 @@ class DiscriminatorLoss(LossModule):
         # gradient is only kept when the caller can backpropagate.
         create_graph = torch.is_grad_enabled()
         with torch.enable_grad():
-            mixed = (
-                eps * features_agent + (1 - eps) * features_teacher
-            ).requires_grad_(True)
+            mixed = (eps * features_agent + (1 - eps) * features_teacher).requires_grad_(True)
             logits = self.net.head(mixed)
-            (grad,) = torch.autograd.grad(
-                logits.sum(), mixed, create_graph=create_graph
-            )
+            (grad,) = torch.autograd.grad(logits.sum(), mixed, create_graph=create_graph)
         return (grad.norm(2, dim=-1) - 1).square().mean()

@@ -19,6 +19,7 @@ Everything TD3 (twin critics, target policy smoothing, clipped double-Q, delayed
 is inherited from :class:`~torchrl.objectives.TD3Loss`; the weights enter through the hook
 that ``TD3Loss`` already reads for prioritized-replay weights.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -26,9 +27,8 @@ from typing import Literal
 
 import torch
 from tensordict import TensorDictBase
-from tensordict.nn import dispatch, TensorDictModule
+from tensordict.nn import TensorDictModule, dispatch
 from tensordict.utils import NestedKey
-
 from torchrl.data.tensor_specs import TensorSpec
 from torchrl.objectives import TD3Loss
 
@@ -184,10 +184,9 @@ class SAILLoss(TD3Loss):
         )
         # float dtype: an int alpha (0 or 1) would make an int buffer that in-place
         # scheduling to 0.5 would truncate
-        self.register_coeff_buffer(
-            "alpha", alpha, device=self.max_action.device, dtype=torch.get_default_dtype()
-        )
+        self.register_coeff_buffer("alpha", alpha, device=self.max_action.device, dtype=torch.get_default_dtype())
 
+    # TD3Loss's private hooks overridden or called here: listed in torchrl_sail._compat.SUBCLASS_HOOKS
     def _set_in_keys(self):
         super()._set_in_keys()
         if self.mixing == "weights":

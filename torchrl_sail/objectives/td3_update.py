@@ -12,6 +12,7 @@ The reference implementation (``implementation="loss"``) calls the loss's
 script does; both give the same losses, gradients and parameters (tested), also for n-step
 transitions (``steps_to_next_obs``) and DDPGfD's two-loss critic step (``nstep_key``).
 """
+
 from __future__ import annotations
 
 import math
@@ -28,6 +29,15 @@ from torchrl.objectives import SoftUpdate, TD3Loss
 from torchrl.objectives.utils import distance_loss
 from torchrl.objectives.value import TD0Estimator
 
+from torchrl_sail._compat import (
+    ACTOR_MLP_PATH,
+    CRITIC_MLP_PATH,
+    DropoutLayer,
+    mlp_params,
+    reduce_loss,
+    soft_update_pairs,
+    tanh_bounds,
+)
 from torchrl_sail.envs.nstep import nstep_view
 
 __all__ = ["TD3Update"]
@@ -38,16 +48,23 @@ _PRECISIONS = {"fp32": None, "bf16": torch.bfloat16}
 def _mlp_program(mlp: nn.Module, params: TensorDictBase, what: str) -> list:
     """The layers of ``mlp`` bound to ``params``: ``(weight, bias)`` pairs and activations."""
     if not isinstance(mlp, nn.Sequential):
-        raise TypeError(f"TD3Update needs the {what} to be an nn.Sequential MLP (e.g. torchrl's MLP), "
-                        f"got {type(mlp).__name__}; use implementation='loss' for other networks.")
+        raise TypeError(
+            f"TD3Update needs the {what} to be an nn.Sequential MLP (e.g. torchrl's MLP), "
+            f"got {type(mlp).__name__}; use implementation='loss' for other networks."
+        )
     program = []
     for name, layer in mlp.named_children():
         if isinstance(layer, nn.Linear):
             program.append((params[name, "weight"], params[name, "bias"] if layer.bias is not None else None))
-        elif isinstance(layer, nn.modules.dropout._DropoutNd) or any(True for _ in layer.parameters(recurse=True)) \
-                or any(True for _ in layer.buffers(recurse=True)):
-            raise TypeError(f"TD3Update runs Linear layers and parameter-free activations; the {what} has "
-                            f"{type(layer).__name__} at position {name}: use implementation='loss'.")
+        elif (
+            isinstance(layer, DropoutLayer)
+            or any(True for _ in layer.parameters(recurse=True))
+            or any(True for _ in layer.buffers(recurse=True))
+        ):
+            raise TypeError(
+                f"TD3Update runs Linear layers and parameter-free activations; the {what} has "
+                f"{type(layer).__name__} at position {name}: use implementation='loss'."
+            )
         else:
             program.append(layer)
     return program
@@ -92,8 +109,10 @@ def _first_detached(program: list) -> list:
     The views share storage with the parameters, so optimizer steps show through; no gradient
     reaches them (the actor loss trains the actor only).
     """
-    return [tuple(None if t is None else t.detach()[0] for t in layer) if isinstance(layer, tuple) else layer
-            for layer in program]
+    return [
+        tuple(None if t is None else t.detach()[0] for t in layer) if isinstance(layer, tuple) else layer
+        for layer in program
+    ]
 
 
 class TD3Update:
@@ -113,7 +132,8 @@ class TD3Update:
       parameters; the actor objective ``-Q_1(s, \\pi(s))`` evaluates the first critic only
       (``TD3Loss`` evaluates every critic and keeps the first); the targets move with one
       ``torch._foreach_lerp_``. Reductions go through the loss's ``_reduce_loss`` and
-      per-row weights through its ``_maybe_get_priority_weight`` hook, so loss masks,
+      per-row weights through its ``_maybe_get_priority_weight`` hook
+      (:func:`torchrl_sail._compat.reduce_loss`), so loss masks,
       prioritized weights and ``SAILLoss(mixing="weights")`` act as in the loss. It
       supports what SAIL uses: an actor ``TensorDictSequential(TensorDictModule(MLP),
       TanhModule)``, a critic ``TensorDictModule(MLP)`` (its ``in_keys`` concatenated in
@@ -175,7 +195,8 @@ class TD3Update:
         >>> actor = TensorDictSequential(
         ...     TensorDictModule(MLP(in_features=3, out_features=2, num_cells=[16]), ["observation"], ["param"]),
         ...     TanhModule(["param"], ["action"], spec=spec))
-        >>> critic = ValueOperator(MLP(in_features=5, out_features=1, num_cells=[16]), in_keys=["action", "observation"])
+        >>> critic = ValueOperator(
+        ...     MLP(in_features=5, out_features=1, num_cells=[16]), in_keys=["action", "observation"])
         >>> loss = SAILLoss(actor, critic, action_spec=spec)
         >>> loss.make_value_estimator(gamma=0.99)
         >>> update = TD3Update(
@@ -250,61 +271,86 @@ class TD3Update:
         """Checks the loss is one the fused step implements, and binds its parameters."""
         loss = self.loss
         if not (loss.delay_actor and loss.delay_qvalue):
-            raise ValueError("TD3Update(implementation='fused') needs target networks for the actor and the "
-                             "critic (TD3Loss(delay_actor=True, delay_qvalue=True), the default).")
+            raise ValueError(
+                "TD3Update(implementation='fused') needs target networks for the actor and the "
+                "critic (TD3Loss(delay_actor=True, delay_qvalue=True), the default)."
+            )
         estimator = loss.value_estimator
         if type(estimator) is not TD0Estimator:
-            raise ValueError(f"TD3Update(implementation='fused') implements the TD(0) target; the loss has "
-                             f"{type(estimator).__name__}: use implementation='loss'.")
+            raise ValueError(
+                f"TD3Update(implementation='fused') implements the TD(0) target; the loss has "
+                f"{type(estimator).__name__}: use implementation='loss'."
+            )
         # What TD0Estimator.value_estimate does besides r + gamma^k (1 - terminated) Q': refused, not approximated.
         if estimator.average_rewards:
-            raise ValueError("TD3Update(implementation='fused') does not standardise rewards: the loss's TD0Estimator "
-                             "has average_rewards=True; use implementation='loss'.")
+            raise ValueError(
+                "TD3Update(implementation='fused') does not standardise rewards: the loss's TD0Estimator "
+                "has average_rewards=True; use implementation='loss'."
+            )
         if estimator.value_network is not None:
-            raise ValueError("TD3Update(implementation='fused') bootstraps from the loss's target critics; the loss's "
-                             "TD0Estimator has its own value_network: use implementation='loss'.")
+            raise ValueError(
+                "TD3Update(implementation='fused') bootstraps from the loss's target critics; the loss's "
+                "TD0Estimator has its own value_network: use implementation='loss'."
+            )
         if unravel_key(estimator.tensor_keys.value) != unravel_key(loss.tensor_keys.state_action_value):
-            raise ValueError(f"TD3Update(implementation='fused'): the TD0Estimator reads the next value from "
-                             f"{estimator.tensor_keys.value!r}, where TD3Loss.value_loss does not write it "
-                             f"({loss.tensor_keys.state_action_value!r}); use implementation='loss'.")
+            raise ValueError(
+                f"TD3Update(implementation='fused'): the TD0Estimator reads the next value from "
+                f"{estimator.tensor_keys.value!r}, where TD3Loss.value_loss does not write it "
+                f"({loss.tensor_keys.state_action_value!r}); use implementation='loss'."
+            )
         if not isinstance(self.target_updater, SoftUpdate):
-            raise TypeError(f"TD3Update(implementation='fused') implements SoftUpdate's Polyak step, got "
-                            f"{type(self.target_updater).__name__}: use implementation='loss'.")
+            raise TypeError(
+                f"TD3Update(implementation='fused') implements SoftUpdate's Polyak step, got "
+                f"{type(self.target_updater).__name__}: use implementation='loss'."
+            )
         actor = loss.actor_network
-        if not (isinstance(actor, TensorDictSequential) and len(actor.module) == 2
-                and isinstance(actor.module[0], TensorDictModule) and isinstance(actor.module[1], TanhModule)):
-            raise TypeError("TD3Update(implementation='fused') needs the actor to be "
-                            "TensorDictSequential(TensorDictModule(MLP), TanhModule): use implementation='loss'.")
+        if not (
+            isinstance(actor, TensorDictSequential)
+            and len(actor.module) == 2
+            and isinstance(actor.module[0], TensorDictModule)
+            and isinstance(actor.module[1], TanhModule)
+        ):
+            raise TypeError(
+                "TD3Update(implementation='fused') needs the actor to be "
+                "TensorDictSequential(TensorDictModule(MLP), TanhModule): use implementation='loss'."
+            )
         body, tanh = actor.module
-        if list(tanh.in_keys) != list(body.out_keys) or len(tanh.out_keys) != 1 \
-                or tanh.out_keys[0] != loss.tensor_keys.action:
-            raise TypeError("TD3Update(implementation='fused') needs the TanhModule to map the MLP output to "
-                            f"{loss.tensor_keys.action!r}; got {tanh.in_keys} -> {tanh.out_keys}.")
+        if (
+            list(tanh.in_keys) != list(body.out_keys)
+            or len(tanh.out_keys) != 1
+            or tanh.out_keys[0] != loss.tensor_keys.action
+        ):
+            raise TypeError(
+                "TD3Update(implementation='fused') needs the TanhModule to map the MLP output to "
+                f"{loss.tensor_keys.action!r}; got {tanh.in_keys} -> {tanh.out_keys}."
+            )
         critic = loss.qvalue_network
-        if not isinstance(critic, TensorDictModule) or isinstance(critic, TensorDictSequential) or len(critic.out_keys) != 1 \
-                or loss.tensor_keys.action not in critic.in_keys:
-            raise TypeError("TD3Update(implementation='fused') needs the critic to be one TensorDictModule "
-                            f"(e.g. ValueOperator(MLP)) reading {loss.tensor_keys.action!r}.")
+        if (
+            not isinstance(critic, TensorDictModule)
+            or isinstance(critic, TensorDictSequential)
+            or len(critic.out_keys) != 1
+            or loss.tensor_keys.action not in critic.in_keys
+        ):
+            raise TypeError(
+                "TD3Update(implementation='fused') needs the critic to be one TensorDictModule "
+                f"(e.g. ValueOperator(MLP)) reading {loss.tensor_keys.action!r}."
+            )
         self._actor_in_keys = list(body.in_keys)
         self._critic_in_keys = list(critic.in_keys)
         self._tanh = tanh
-        self._tanh_key = tanh.out_keys[0] if isinstance(tanh.out_keys[0], str) else "_".join(tanh.out_keys[0])
-        params = {name: getattr(loss, name) for name in (
-            "actor_network_params", "target_actor_network_params",
-            "qvalue_network_params", "target_qvalue_network_params")}
-        self._actor = _mlp_program(body.module, params["actor_network_params"]["module", "0", "module"], "actor")
+        self._tanh_bounds = tanh_bounds(tanh)
+        self._actor = _mlp_program(body.module, mlp_params(loss.actor_network_params, ACTOR_MLP_PATH), "actor")
         self._target_actor = _mlp_program(
-            body.module, params["target_actor_network_params"]["module", "0", "module"], "actor")
-        self._critic = _mlp_program(critic.module, params["qvalue_network_params"]["module"], "critic")
-        self._target_critic = _mlp_program(critic.module, params["target_qvalue_network_params"]["module"], "critic")
+            body.module, mlp_params(loss.target_actor_network_params, ACTOR_MLP_PATH), "actor"
+        )
+        self._critic = _mlp_program(critic.module, mlp_params(loss.qvalue_network_params, CRITIC_MLP_PATH), "critic")
+        self._target_critic = _mlp_program(
+            critic.module, mlp_params(loss.target_qvalue_network_params, CRITIC_MLP_PATH), "critic"
+        )
         self._critic_first = _first_detached(self._critic)
         # SoftUpdate's own source/target pairing, as flat lists for one foreach call.
-        updater = self.target_updater
-        sources = updater._sources
-        self._polyak_sources = [sources[key].data for key in sources.keys(True, True)]
-        self._polyak_targets = [updater._targets[("target_" + key[0], *key[1:]) if isinstance(key, tuple)
-                                                 else "target_" + key].data for key in sources.keys(True, True)]
-        self._tau = 1.0 - updater.eps
+        self._polyak_sources, self._polyak_targets = soft_update_pairs(self.target_updater)
+        self._tau = 1.0 - self.target_updater.eps
 
     def _autocast(self):
         dtype = _PRECISIONS[self.precision]
@@ -320,14 +366,15 @@ class TD3Update:
             eps = torch.finfo(feature.dtype).resolution
             feature = feature.clamp(-1 + eps, 1 - eps)
         if tanh.non_trivial:  # as TanhModule tests it (a dict of flags: the map always runs there too)
-            low, high = getattr(tanh, f"{self._tanh_key}_low"), getattr(tanh, f"{self._tanh_key}_high")
+            low, high = self._tanh_bounds
             feature = low + (high - low) * (feature + 1) / 2
         return feature
 
     def _critic_input(self, batch: TensorDictBase, action: torch.Tensor, prefix: tuple = ()) -> torch.Tensor:
         action_key = self.loss.tensor_keys.action
-        parts = [action if key == action_key else batch[(*prefix, key) if prefix else key]
-                 for key in self._critic_in_keys]
+        parts = [
+            action if key == action_key else batch[(*prefix, key) if prefix else key] for key in self._critic_in_keys
+        ]
         return torch.cat(parts, -1) if len(parts) > 1 else parts[0]
 
     def _actor_input(self, batch: TensorDictBase, prefix: tuple = ()) -> torch.Tensor:
@@ -431,8 +478,7 @@ class TD3Update:
     def _td_loss(self, q: torch.Tensor, target: torch.Tensor, batch: TensorDictBase) -> torch.Tensor:
         """``value_loss``'s reduction: the distance summed over the critics, then the loss's masks and weights."""
         loss = self.loss
-        return loss._reduce_loss(distance_loss(q, target.expand_as(q), loss_function=loss.loss_function).sum(0),
-                                 tensordict=batch, weights=loss._maybe_get_priority_weight(batch))
+        return reduce_loss(loss, distance_loss(q, target.expand_as(q), loss_function=loss.loss_function).sum(0), batch)
 
     def actor_step(self, batch: TensorDictBase) -> dict[str, torch.Tensor]:
         """``actor_loss``, its backward and ``actor_optimizer.step()`` (targets not moved).
@@ -447,7 +493,7 @@ class TD3Update:
             else:
                 pi = self._action(self._actor, self._actor_input(batch))
                 q_pi = _run(self._critic_first, self._critic_input(batch, pi)).squeeze(-1).float()
-                loss_a = loss._reduce_loss(-q_pi, tensordict=batch, weights=loss._maybe_get_priority_weight(batch))
+                loss_a = reduce_loss(loss, -q_pi, batch)
         loss_a.backward()
         if self.actor_max_grad_norm is not None:
             torch.nn.utils.clip_grad_norm_(self._actor_params, self.actor_max_grad_norm, foreach=True)
@@ -465,6 +511,7 @@ class TD3Update:
 
     def __repr__(self) -> str:
         nstep = "" if self.nstep_key is None else f", nstep_key={self.nstep_key!r}, nstep_weight={self.nstep_weight}"
-        return (f"{type(self).__name__}(loss={type(self.loss).__name__}, implementation={self.implementation!r}, "
-                f"precision={self.precision!r}{nstep})")
-
+        return (
+            f"{type(self).__name__}(loss={type(self.loss).__name__}, implementation={self.implementation!r}, "
+            f"precision={self.precision!r}{nstep})"
+        )

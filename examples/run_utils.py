@@ -1,0 +1,138 @@
+"""What every training loop does besides building its pieces: seeds, cadences, evaluations, logs
+and the run's summary (the run folder's life cycle itself is :mod:`torchrl_sail.runs`)."""
+
+from __future__ import annotations
+
+import math
+import random
+from pathlib import Path
+
+import numpy as np
+import torch
+from omegaconf import DictConfig, OmegaConf
+from torchrl.envs import ExplorationType, set_exploration_type
+from torchrl.record.loggers import get_logger
+
+from torchrl_sail.runs import add_evaluation, new_run, plot_learning_curve, write_summary
+
+EXAMPLES_DIR = Path(__file__).resolve().parent
+
+
+def seed_everything(seed: int) -> None:
+    random.seed(seed)
+    np.random.seed(seed)
+    torch.manual_seed(seed)
+
+
+def crossings(every: int, start: int, before: int, now: int) -> int:
+    """How many multiples of ``every`` that are ``>= start`` lie in ``(before, now]`` (0 if ``every`` is 0).
+
+    Every cadence of the loop (updates, evaluation, checkpoints) is derived from the frame count
+    this way, so a resumed run needs no other counter.
+    """
+    if not every:
+        return 0
+    return max(0, now // every - (max(start, before + 1) - 1) // every)
+
+
+def actor_lr(cfg: DictConfig, frames: int) -> float:
+    """The actor's learning rate at ``frames``: ``optim.lr``, decayed stepwise by ``optim.actor_lr_decay``."""
+    decay = cfg.optim.actor_lr_decay
+    return cfg.optim.lr if decay is None else cfg.optim.lr * decay.rate ** (frames // decay.every_frames)
+
+
+def make_run(cfg: DictConfig) -> dict:
+    """A fresh run state (``torchrl_sail.runs.new_run``) with this config's identity: env, algo, seed, teacher."""
+    return new_run(env=cfg.env.name, algo=cfg.algo.name, seed=cfg.seed, teacher=cfg.teacher.path)
+
+
+# ----------------------------------------------------------------------------- evaluation
+@torch.no_grad()
+def evaluate_episodes(env, actor, episodes: int, max_steps: int, *, keep_rollouts: bool = False) -> list[dict]:
+    """Deterministic episodes: the dense return, the delayed reward r_e and the length of each
+    (and its ``"rollout"`` with ``keep_rollouts``)."""
+    results = []
+    with set_exploration_type(ExplorationType.DETERMINISTIC):
+        for _ in range(episodes):
+            rollout = env.rollout(max_steps, actor, break_when_any_done=True)
+            results.append(
+                {
+                    "dense_return": float(rollout["next", "episode_return"][-1]),
+                    "delayed_reward": float(rollout["next", "reward"].sum()),
+                    "length": rollout.numel(),
+                    **({"rollout": rollout} if keep_rollouts else {}),
+                }
+            )
+    return results
+
+
+def evaluate(env, actor, episodes: int, max_steps: int) -> float:
+    """Mean dense return of deterministic episodes (reporting only; the learner never sees it)."""
+    return sum(e["dense_return"] for e in evaluate_episodes(env, actor, episodes, max_steps)) / episodes
+
+
+def record_evaluation(eval_env, actor, cfg: DictConfig, run: dict, frames: int, teacher_return: float) -> float:
+    """The loops' evaluation at ``frames``: its mean return, kept in ``run["evals"]`` with the first
+    frame it beat the teacher (``run["passed_teacher_at"]``)."""
+    value = evaluate(eval_env, actor, cfg.eval.episodes, cfg.env.max_episode_steps)
+    add_evaluation(run, frames, value, teacher_return)
+    return value
+
+
+# ----------------------------------------------------------------------------- logs and summary
+def make_loggers(cfg: DictConfig, run_dir: Path, states: dict) -> dict:
+    """TorchRL loggers by backend name; ``states`` (saved ``logger.state_dict()``) resumes them."""
+    loggers = {}
+    for backend in dict.fromkeys(["csv", *cfg.logger.backends]):  # csv always, once
+        kwargs = {}
+        if backend == "wandb":
+            # get_logger forwards only `wandb_kwargs`; offline mode needs no account.
+            kwargs = {
+                "wandb_kwargs": {
+                    "offline": cfg.logger.wandb_mode == "offline",
+                    "project": cfg.logger.project,
+                    "config": OmegaConf.to_container(cfg, resolve=True, enum_to_str=True),
+                }
+            }
+        if backend in states:
+            kwargs["state_dict"] = states[backend]  # e.g. wandb: log to the same run id
+        loggers[backend] = get_logger(backend, logger_name=str(run_dir), experiment_name="logs", **kwargs)
+    return loggers
+
+
+def logger_states(loggers: dict) -> dict:
+    # The CSV logger's state is its history, already on disk: resume truncates the files instead.
+    return {name: logger.state_dict() for name, logger in loggers.items() if name != "csv"}
+
+
+def log_metrics(loggers, metrics: dict, step: int) -> None:
+    values = {k: float(v.detach()) if torch.is_tensor(v) else float(v) for k, v in metrics.items() if v is not None}
+    # Learned quantities reach here finite (DivergenceCheck runs first); what is dropped is
+    # bookkeeping, e.g. the promotion threshold, -inf until the window W_k holds a trajectory.
+    metrics = {k: v for k, v in values.items() if math.isfinite(v)}
+    for logger in loggers.values():
+        logger.log_metrics(metrics, step)
+
+
+def write_run_summary(run_dir: Path, cfg: DictConfig, *, teacher_return: float, alpha_switch_frame, **results) -> None:
+    """The finished run's ``learning_curve.png`` and ``summary.json`` (``torchrl_sail.runs``): the run's
+    env, algo, seed, teacher return and budget, ``results``, then memory and provenance."""
+    plot_learning_curve(
+        run_dir,
+        teacher_return=teacher_return,
+        alpha_switch_frame=alpha_switch_frame,
+        title=f"{cfg.algo.name} on {cfg.env.name}, seed {cfg.seed}",
+    )
+    write_summary(
+        run_dir,
+        {
+            "env": cfg.env.name,
+            "algo": cfg.algo.name,
+            "seed": cfg.seed,
+            "teacher_return": teacher_return,
+            "total_frames": 0 if results.get("offline") else cfg.collector.total_frames,
+            "alpha_switched_at_frame": alpha_switch_frame,
+            **results,
+        },
+        code_dir=EXAMPLES_DIR,
+    )

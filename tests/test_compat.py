@@ -1,0 +1,108 @@
+"""``torchrl_sail._compat``: every private TorchRL API the package and its examples use still exists and
+behaves as relied on (checked against torchrl 0.14.1: an upgrade that changes one fails here, naming it)."""
+
+from __future__ import annotations
+
+import importlib
+import importlib.metadata
+
+import pytest
+import torch
+from tensordict import TensorDict
+from tensordict.nn import TensorDictModule, TensorDictSequential
+from torch import nn
+from torchrl.data import Bounded
+from torchrl.modules import MLP, TanhModule, ValueOperator
+from torchrl.objectives import SoftUpdate
+
+from torchrl_sail import SAILLoss, _compat, make_sail_env
+
+
+def test_checked_against_this_torchrl_minor_version():
+    installed = importlib.metadata.version("torchrl")
+    assert installed.split(".")[:2] == _compat.TORCHRL_VERSION.split(".")[:2], (
+        f"torchrl {installed} is installed, torchrl_sail._compat was checked against {_compat.TORCHRL_VERSION}: "
+        f"check every entry of torchrl_sail/_compat.py, then update TORCHRL_VERSION"
+    )
+
+
+@pytest.mark.parametrize(
+    "owner, name", [(owner, name) for owner, names in _compat.SUBCLASS_HOOKS.items() for name in names]
+)
+def test_subclass_hooks_exist(owner, name):
+    module, _, cls = owner.rpartition(".")
+    assert callable(getattr(getattr(importlib.import_module(module), cls), name))
+
+
+def td3_loss():
+    spec = Bounded(-2.0, 2.0, (2,))
+    actor = TensorDictSequential(
+        TensorDictModule(MLP(in_features=3, out_features=2, num_cells=[8]), ["observation"], ["param"]),
+        TanhModule(["param"], ["action"], spec=spec),
+    )
+    critic = ValueOperator(MLP(in_features=5, out_features=1, num_cells=[8]), in_keys=["action", "observation"])
+    loss = SAILLoss(actor, critic, action_spec=spec)
+    loss.make_value_estimator(gamma=0.99)
+    return loss, spec
+
+
+def test_soft_update_pairs_are_softupdates_own():
+    loss, _ = td3_loss()
+    updater = SoftUpdate(loss, tau=0.1)
+    sources, targets = _compat.soft_update_pairs(updater)
+    assert len(sources) == len(targets) >= 8  # the actor's and the critics' weights and biases (and buffers)
+    assert all(source.shape == target.shape for source, target in zip(sources, targets))
+    with torch.no_grad():
+        for source in sources:
+            source.add_(1.0)  # move the sources away from the targets
+    expected = [target + 0.1 * (source - target) for source, target in zip(sources, targets)]
+    updater.step()  # TorchRL's own Polyak step moves exactly these tensors
+    for target, value in zip(targets, expected):
+        torch.testing.assert_close(target, value)
+
+
+def test_reduce_loss_is_the_losss_reduction():
+    loss, _ = td3_loss()
+    batch = TensorDict({}, [4])
+    assert _compat.reduce_loss(loss, torch.tensor([1.0, 2.0, 3.0, 6.0]), batch).item() == 3.0  # "mean"
+
+
+def test_mlp_params_paths_and_tanh_bounds():
+    loss, spec = td3_loss()
+    actor_mlp = _compat.mlp_params(loss.actor_network_params, _compat.ACTOR_MLP_PATH)
+    assert actor_mlp["0", "weight"].shape == (8, 3) and actor_mlp["2", "bias"].shape == (2,)
+    critic_mlp = _compat.mlp_params(loss.qvalue_network_params, _compat.CRITIC_MLP_PATH)
+    assert critic_mlp["0", "weight"].shape == (2, 8, 5)  # the twin critics, stacked
+    low, high = _compat.tanh_bounds(loss.actor_network.module[1])
+    assert torch.equal(low, spec.space.low) and torch.equal(high, spec.space.high)
+
+
+def test_env_privates():
+    env = make_sail_env("Hopper-v4", max_episode_steps=10)
+    assert _compat.filtered_reset_keys(env) == ["_reset"]
+    assert _compat.render_fps(env) == 125  # 1 / dt
+    data = TensorDict({"_reset": torch.tensor([[True], [False]])}, [2])
+    assert _compat.reset_mask("_reset", data).tolist() == [True, False]
+    assert _compat.reset_mask("_reset", TensorDict({}, [3])).tolist() == [True] * 3  # absent: every entry
+
+
+def test_multi_step():
+    steps = TensorDict(
+        {
+            "next": {
+                "reward": torch.ones(1, 4, 1),
+                "done": torch.zeros(1, 4, 1, dtype=torch.bool),
+                "observation": torch.arange(4.0).view(1, 4, 1),
+            }
+        },
+        [1, 4],
+    )
+    out = _compat.multi_step(
+        steps, done_key="done", done_keys=[], reward_keys=["reward"], mask_key=None, n_steps=2, gamma=0.5
+    )
+    assert out["next", "reward"].view(-1).tolist() == [1.5, 1.5, 1.5, 1.0]  # cut at the window's end
+    assert out["next", "observation"].view(-1).tolist() == [1.0, 2.0, 3.0, 3.0]
+
+
+def test_dropout_layer():
+    assert isinstance(nn.Dropout(0.1), _compat.DropoutLayer) and not isinstance(nn.ReLU(), _compat.DropoutLayer)

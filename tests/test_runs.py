@@ -1,0 +1,281 @@
+"""``torchrl_sail.runs``: a run folder's life cycle (start, resume, truncate, summarise, read) on hand-made folders."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+
+import pytest
+import torch
+from torchrl.checkpoint import Checkpoint
+
+from torchrl_sail import runs
+from torchrl_sail._compat import timeit
+from torchrl_sail.runs import (
+    add_evaluation,
+    checkpoint_dir,
+    is_finished,
+    last_checkpoint,
+    new_run,
+    read_scalar,
+    restore_run,
+    resume_mode,
+    start_or_resume,
+    train_timing,
+    truncate_scalar_logs,
+    write_atomic,
+    write_summary,
+)
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def write(path: Path, text: str) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+    return path
+
+
+def identity(**changes) -> dict:
+    return {"env": "Hopper-v4", "algo": "sail", "seed": 0, "teacher": "/data/paper.npz", **changes}
+
+
+def saved_run(run_dir: Path, *, frames: int = 2000, weight: float = 1.0, lr: float = 1e-3, **changes) -> None:
+    """A checkpoint as a training script saves it: the run dict at ``frames``, a layer and its optimizer."""
+    run = new_run(**identity(**changes))
+    run.update(frames=frames, gradient_steps=frames // 20, evals=[(1000, 5.0), (2000, 30.0)])
+    layer = torch.nn.Linear(2, 1)
+    torch.nn.init.constant_(layer.weight, weight)
+    optimizer = torch.optim.Adam(layer.parameters(), lr=lr)
+    Checkpoint(run=run, layer=layer, optim=optimizer).save(checkpoint_dir(run_dir))
+
+
+def fresh(lr: float = 1e-3) -> tuple[dict, torch.nn.Linear, torch.optim.Optimizer, Checkpoint]:
+    run, layer = new_run(**identity()), torch.nn.Linear(2, 1)
+    optimizer = torch.optim.Adam(layer.parameters(), lr=lr)
+    return run, layer, optimizer, Checkpoint(run=run, layer=layer, optim=optimizer)
+
+
+# ----------------------------------------------------------------------------- resume_mode
+def test_resume_false_starts_a_new_folder_and_refuses_one_with_a_checkpoint(tmp_path):
+    assert resume_mode(tmp_path / "new", False, 1000) is False
+    saved_run(tmp_path / "run")
+    with pytest.raises(FileExistsError, match="already holds a run .* resume=true"):
+        resume_mode(tmp_path / "run", False, 1000)
+    assert resume_mode(tmp_path / "run", True, 1000) is True
+
+
+def test_resume_auto_skips_finished_continues_checkpointed_and_restarts_the_rest(tmp_path):
+    # finished (summary at the budget, or offline): skipped
+    write(tmp_path / "done" / "summary.json", json.dumps({"frames": 3000}))
+    assert resume_mode(tmp_path / "done", "auto", 3000) is None
+    write(tmp_path / "bc" / "summary.json", json.dumps({"frames": 0, "offline": True}))
+    assert resume_mode(tmp_path / "bc", "auto", 10**6) is None
+    # a larger budget: continued from the checkpoint
+    saved_run(tmp_path / "done")
+    assert resume_mode(tmp_path / "done", "auto", 4000) is True
+    # finished but without a checkpoint (a results copy): skipped at its budget, and it cannot be extended
+    write(tmp_path / "copy" / "summary.json", json.dumps({"frames": 3000}))
+    assert resume_mode(tmp_path / "copy", "auto", 3000) is None
+    with pytest.raises(
+        FileNotFoundError, match="finished 3000-frame run but no checkpoint to extend it to collector.total_frames=4000"
+    ):
+        resume_mode(tmp_path / "copy", "auto", 4000)
+    # stopped before its first checkpoint: its logs go, it starts afresh
+    log = write(tmp_path / "early" / "logs" / "scalars" / "eval" / "return.csv", "500,1.0\n")
+    write(tmp_path / "early" / "config.yaml", "seed: 0\n")
+    assert resume_mode(tmp_path / "early", "auto", 3000) is False
+    assert not log.exists() and (tmp_path / "early" / "config.yaml").exists()
+
+
+def test_is_finished():
+    assert is_finished({"frames": 3000}, 3000) and not is_finished({"frames": 2999}, 3000)
+    assert is_finished({"offline": True, "frames": 0}, 10) and not is_finished({}, 1)
+
+
+# ----------------------------------------------------------------------------- restore and start
+def test_restore_checks_the_identity_then_loads_and_truncates_the_logs(tmp_path):
+    run_dir = tmp_path / "run"
+    saved_run(run_dir, frames=2000, weight=0.5)
+    eval_csv = write(run_dir / "logs" / "scalars" / "eval" / "return.csv", "1000,5.0\n2000,30.0\n3000,41.0\n")
+    alpha_csv = write(run_dir / "logs" / "scalars" / "alpha.csv", "1000,0.5\n2000,0.5\n")
+    run, layer, _, checkpoint = fresh()
+    restore_run(checkpoint, run_dir, run)
+    # (the checkpoint keeps the run dict as JSON: the evaluations come back as lists)
+    assert run["frames"] == 2000 and run["evals"] == [[1000, 5.0], [2000, 30.0]] and run["identity"] == identity()
+    assert torch.equal(layer.weight, torch.full((1, 2), 0.5))
+    # rows logged after the checkpoint are logged again by the resumed run: dropped, the others kept
+    assert eval_csv.read_text() == "1000,5.0\n2000,30.0\n" and alpha_csv.read_text() == "1000,0.5\n2000,0.5\n"
+    assert not list(run_dir.rglob(".*.tmp"))
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        ({"seed": 1}, "written with seed=1, this run has seed=0"),
+        (
+            {"teacher": "/data/other.npz"},
+            "written with teacher.path='/data/other.npz', this run has teacher.path='/data/paper.npz'",
+        ),
+        ({"env": "Walker2d-v4"}, "written with env='Walker2d-v4'"),
+    ],
+)
+def test_restore_refuses_another_runs_checkpoint(tmp_path, change, message):
+    saved_run(tmp_path / "run", weight=0.5, **change)
+    run, layer, _, checkpoint = fresh()
+    before = layer.weight.detach().clone()
+    with pytest.raises(ValueError, match=message.replace("(", r"\(")):
+        restore_run(checkpoint, tmp_path / "run", run)
+    assert torch.equal(layer.weight, before)  # nothing but the run's identity was read
+
+
+def test_restore_without_or_with_a_damaged_checkpoint(tmp_path):
+    run, _, _, checkpoint = fresh()
+    with pytest.raises(FileNotFoundError, match="resume=true but there is no checkpoint at"):
+        restore_run(checkpoint, tmp_path / "run", run)
+    write(tmp_path / "run" / "checkpoint" / "manifest.json", "not a checkpoint")
+    with pytest.raises(ValueError, match="checkpoint is unreadable"):
+        restore_run(checkpoint, tmp_path / "run", run)
+
+
+def test_start_or_resume_keeps_the_configured_lr_drops_the_summary_and_writes_the_config(tmp_path):
+    from omegaconf import OmegaConf
+
+    run_dir = tmp_path / "run"
+    saved_run(run_dir, lr=1e-3)
+    write(run_dir / "summary.json", json.dumps({"frames": 2000}))
+    run, _, optimizer, checkpoint = fresh(lr=5e-4)
+    config = OmegaConf.create({"seed": 0, "optim": {"lr": 5e-4}, "dir": "${seed}"})
+    start_or_resume(checkpoint, run_dir, run, True, optimizers=[optimizer], config=config)
+    assert run["frames"] == 2000 and optimizer.param_groups[0]["lr"] == 5e-4  # the configured one, not the saved
+    assert not (run_dir / "summary.json").exists()  # a continued run is unfinished until it ends
+    assert (run_dir / "config.yaml").read_text() == "seed: 0\noptim:\n  lr: 0.0005\ndir: 0\n"  # resolved
+
+
+def test_start_or_resume_offline_keeps_logs_and_summary(tmp_path):
+    run_dir = tmp_path / "run"
+    saved_run(run_dir, frames=0)
+    steps = write(run_dir / "logs" / "scalars" / "bc" / "loss.csv", "10,0.5\n20,0.25\n")  # BC steps, not frames
+    write(run_dir / "summary.json", json.dumps({"frames": 0, "offline": True}))
+    run, _, optimizer, checkpoint = fresh()
+    start_or_resume(checkpoint, run_dir, run, True, optimizers=[optimizer], truncate_logs=False)
+    assert steps.read_text() == "10,0.5\n20,0.25\n" and (run_dir / "summary.json").exists()
+    assert not (run_dir / "config.yaml").exists()  # no config given
+
+
+def test_start_writes_only_the_config(tmp_path):
+    from omegaconf import OmegaConf
+
+    run, _, _, checkpoint = fresh()
+    (tmp_path / "run").mkdir()
+    start_or_resume(checkpoint, tmp_path / "run", run, False, config=OmegaConf.create({"seed": 3}))
+    assert sorted(p.name for p in (tmp_path / "run").iterdir()) == ["config.yaml"] and run == new_run(**identity())
+
+
+def test_truncate_scalar_logs_rewrites_only_the_files_with_later_rows(tmp_path):
+    late = write(tmp_path / "logs" / "scalars" / "d" / "accuracy.csv", "500,0.5\n1000,0.6\n1500,0.7\n")
+    early = write(tmp_path / "logs" / "scalars" / "alpha.csv", "500,0.5\n1000,0.5\n")
+    stamp = early.stat().st_mtime_ns
+    assert truncate_scalar_logs(tmp_path, 1000) == [late]
+    assert late.read_text() == "500,0.5\n1000,0.6\n" and early.stat().st_mtime_ns == stamp
+    assert truncate_scalar_logs(tmp_path / "nothing", 0) == []
+
+
+def test_last_checkpoint_names_the_saved_frame(tmp_path):
+    run = new_run(**identity())
+    assert last_checkpoint(tmp_path, run) is None
+    saved_run(tmp_path)
+    run["frames"] = 2000
+    assert last_checkpoint(tmp_path, run) == f"{tmp_path / 'checkpoint'}, frame 2000"
+
+
+def test_add_evaluation_records_the_first_frame_above_the_teacher():
+    run = new_run(**identity())
+    for frames, value in [(1000, 200.0), (2000, 150.0), (3000, 90.0)]:
+        add_evaluation(run, frames, value, teacher_return=150.0)
+    assert run["evals"] == [(1000, 200.0), (2000, 150.0), (3000, 90.0)] and run["passed_teacher_at"] == 1000
+    run = new_run(**identity())
+    add_evaluation(run, 1000, 150.0, teacher_return=150.0)  # equal is not above
+    assert run["passed_teacher_at"] is None
+
+
+# ----------------------------------------------------------------------------- read_scalar
+def test_read_scalar_reads_the_logs_as_logged(tmp_path):
+    write(tmp_path / "logs" / "scalars" / "eval" / "return.csv", "1000,12.5\n\n3000,30.0\n2000,20.0\n2000,21.0\n")
+    # every row in file order: a frame logged twice shows twice (callers that want one per frame use dict())
+    assert read_scalar(tmp_path, "eval/return") == [(1000, 12.5), (3000, 30.0), (2000, 20.0), (2000, 21.0)]
+    assert read_scalar(tmp_path, "sail/q_mean") == []
+    write(tmp_path / "logs" / "scalars" / "alpha.csv", "1000.0,0.5\n")  # TorchRL may write float steps
+    assert read_scalar(tmp_path, "alpha") == [(1000, 0.5)]
+
+
+def test_read_scalar_reads_a_results_copy(tmp_path):
+    # campaign.py --collect keeps one scalars.csv: it is read instead of logs/ (which a copy lacks)
+    write(
+        tmp_path / "scalars.csv",
+        "tag,frames,value\neval/return,1000,12.5\nd/accuracy_agent,1000,0.75\neval/return,2000,30.0\n",
+    )
+    write(tmp_path / "logs" / "scalars" / "eval" / "return.csv", "1000,99.0\n")
+    assert read_scalar(tmp_path, "eval/return") == [(1000, 12.5), (2000, 30.0)]
+    assert read_scalar(tmp_path, "d/accuracy_agent") == [(1000, 0.75)] and read_scalar(tmp_path, "alpha") == []
+
+
+@pytest.mark.parametrize(
+    "where, text",
+    [
+        ("logs/scalars/eval/return.csv", "1000,12.5\nfoo\n"),
+        ("logs/scalars/eval/return.csv", "1000,12.5\n2000,1,3\n"),
+        ("scalars.csv", "tag,frames,value\neval/return,x,1.0\n"),
+    ],
+)
+def test_read_scalar_names_a_bad_row(tmp_path, where, text):
+    write(tmp_path / where, text)
+    with pytest.raises(ValueError, match=f"{where}, line 2: expected 'frames,value'"):
+        read_scalar(tmp_path, "eval/return")
+
+
+# ----------------------------------------------------------------------------- summary
+def test_write_summary_adds_memory_curve_and_provenance(tmp_path):
+    written = write_summary(tmp_path, {"env": "Hopper-v4", "frames": 3000}, code_dir=REPO)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary == written and list(summary)[:2] == ["env", "frames"]
+    assert list(summary)[2:] == ["peak_memory_mb", "learning_curve", "provenance"]
+    assert summary["peak_memory_mb"] > 0 and summary["learning_curve"] == "learning_curve.png"
+    head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO, capture_output=True, text=True).stdout.strip()
+    code = summary["provenance"]
+    assert code["commit"] == head and isinstance(code["dirty"], bool) and code["torch_threads"] >= 1
+    assert set(code["versions"]) == {"torchrl_sail", "torch", "torchrl", "tensordict", "gymnasium", "mujoco"}
+
+
+def test_provenance_outside_a_checkout(tmp_path):
+    code = runs.provenance(tmp_path)
+    assert code["commit"] is None and code["dirty"] is None and code["python"]
+
+
+def test_plot_learning_curve_reads_the_logs(tmp_path):
+    write(tmp_path / "logs" / "scalars" / "eval" / "return.csv", "1000,12.5\n2000,30.0\n")
+    path = runs.plot_learning_curve(tmp_path, teacher_return=20.0, alpha_switch_frame=1500, title="sail")
+    assert path == tmp_path / "learning_curve.png" and path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_train_timing(tmp_path):
+    assert train_timing(None, end=10.0, frames=500) == {
+        "train_frames": 0,
+        "train_seconds": 0.0,
+        "train_frames_per_second": None,
+    }
+    timeit.erase()
+    for _ in range(3):
+        with timeit("runs_test_section"):
+            pass
+    timing = train_timing((100.0, 1000), end=102.0, frames=3000)
+    assert (timing["train_frames"], timing["train_seconds"], timing["train_frames_per_second"]) == (2000, 2.0, 1000.0)
+    assert timing["counts"]["frames"] == 2000 and timing["counts"]["runs_test_section"] == 3
+    assert timing["time_seconds"]["runs_test_section"] >= 0
+
+
+def test_write_atomic_replaces_whole_files(tmp_path):
+    write_atomic(tmp_path / "a.json", "one")
+    write_atomic(tmp_path / "a.json", "two")
+    assert (tmp_path / "a.json").read_text() == "two" and [p.name for p in tmp_path.iterdir()] == ["a.json"]

@@ -1,0 +1,197 @@
+"""Every private TorchRL API this package and its examples rely on, in one place.
+
+TorchRL keeps these names private (a leading underscore, or an internal layout), so a release
+may change them without notice. Each one is used here only, through a small function that
+says what it reads and why no public API does; the rest of the code (``TD3Update``, the
+transforms, ``examples/``) calls these functions. ``tests/test_compat.py`` checks every entry
+against the installed TorchRL, so an upgrade that breaks one fails there, naming it.
+
+Checked against torchrl 0.14.1 (tensordict 0.14.3, torch 2.13.0).
+
+Reads of TorchRL internals (functions below):
+
+- ``torchrl._utils.timeit`` and its registry ``timeit._REG`` (:data:`timeit`, :func:`timeit_totals`);
+- ``TargetNetUpdater._sources`` / ``_targets`` and their ``"target_" + name`` pairing
+  (:func:`soft_update_pairs`);
+- ``LossModule._reduce_loss`` and ``LossModule._maybe_get_priority_weight`` (:func:`reduce_loss`);
+- the parameter layout of ``TD3Loss``'s functional copies of SAIL's actor and critic
+  (:data:`ACTOR_MLP_PATH`, :data:`CRITIC_MLP_PATH`, :func:`mlp_params`);
+- ``TanhModule``'s bound buffers ``<out_key>_low`` / ``<out_key>_high`` (:func:`tanh_bounds`);
+- ``EnvBase._filtered_reset_keys`` (:func:`filtered_reset_keys`);
+- ``torchrl.envs.transforms.utils._get_reset`` (:func:`reset_mask`);
+- ``torchrl.data.postprocs.postprocs._multi_step_func`` (:func:`multi_step`);
+- ``GymLikeEnv._env``, the wrapped gymnasium env, for its ``metadata`` (:func:`render_fps`);
+- torch's ``nn.modules.dropout._DropoutNd`` (:data:`DropoutLayer`). ``TD3Update`` also calls
+  ``torch._foreach_lerp_`` directly: torch's foreach kernels have no public alias.
+
+Hooks this package's subclasses override or call on ``self``/``super()`` (inheritance, listed in
+:data:`SUBCLASS_HOOKS`; the subclasses use them in place): ``SAILLoss`` (a ``TD3Loss``) and
+``NStepTransform`` (a ``MultiStepTransform``).
+"""
+
+from __future__ import annotations
+
+import torch
+from tensordict import TensorDictBase
+from torch import nn
+from torchrl._utils import timeit  # noqa: F401  (TorchRL's section timer: a private module, re-exported)
+from torchrl.data.postprocs.postprocs import _multi_step_func
+from torchrl.envs.transforms.utils import _get_reset
+
+__all__ = [
+    "ACTOR_MLP_PATH",
+    "CRITIC_MLP_PATH",
+    "DropoutLayer",
+    "SUBCLASS_HOOKS",
+    "TORCHRL_VERSION",
+    "filtered_reset_keys",
+    "mlp_params",
+    "multi_step",
+    "reduce_loss",
+    "render_fps",
+    "reset_mask",
+    "soft_update_pairs",
+    "tanh_bounds",
+    "timeit",
+    "timeit_totals",
+]
+
+#: The TorchRL release every entry of this module was checked against.
+TORCHRL_VERSION = "0.14.1"
+
+#: Private methods of TorchRL classes that this package's subclasses override or call on
+#: ``self``/``super()``: ``"module.Class": (name, ...)``.
+SUBCLASS_HOOKS = {
+    # SAILLoss: adds is_teacher to the in_keys (mixing="weights"), computes the per-row weights
+    # TD3Loss reduces with, and reads the loss masks the same way TD3Loss does
+    "torchrl.objectives.TD3Loss": (
+        "_set_in_keys",
+        "_maybe_get_priority_weight",
+        "_loss_mask_keys",
+        "_expand_loss_mask",
+    ),
+    # NStepTransform: overrides MultiStepTransform's buffering of the last n steps (its ``_buffer``
+    # attribute) and calls its key validation (``_validated`` flag)
+    "torchrl.envs.transforms.MultiStepTransform": ("_validate", "_append_tensordict"),
+}
+
+
+# ----------------------------------------------------------------------------- timing
+def timeit_totals() -> dict[str, tuple[float, int]]:
+    """Total seconds and number of calls of each ``timeit`` section since the last ``timeit.erase()``.
+
+    ``timeit.todict(percall=False)`` gives the totals but not the counts; both are in the
+    private registry ``timeit._REG`` (``name -> [mean seconds, total seconds, count]``).
+
+    Examples:
+        >>> from torchrl_sail._compat import timeit, timeit_totals
+        >>> timeit.erase()
+        >>> with timeit("compat_doctest"):
+        ...     pass
+        >>> timeit_totals()["compat_doctest"][1]
+        1
+    """
+    return {name: (float(total), int(count)) for name, (_, total, count) in timeit._REG.items()}
+
+
+# ----------------------------------------------------------------------------- objectives
+def soft_update_pairs(updater) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
+    """The source and target parameter tensors of a ``SoftUpdate``, paired as its ``step()`` pairs them.
+
+    Reads ``TargetNetUpdater._sources`` and ``_targets`` (TensorDicts of the loss's
+    ``*_params`` and ``target_*_params``) and their pairing rule: the target of the source entry
+    ``(name, *rest)`` is ``("target_" + name, *rest)``. Returns the ``.data`` of each, in one
+    order, for one ``torch._foreach_lerp_(targets, sources, 1 - updater.eps)``.
+    """
+    sources, targets = updater._sources, updater._targets
+    keys = list(sources.keys(True, True))
+    target_keys = [("target_" + key[0], *key[1:]) if isinstance(key, tuple) else "target_" + key for key in keys]
+    return [sources[key].data for key in keys], [targets[key].data for key in target_keys]
+
+
+def reduce_loss(loss, value: torch.Tensor, batch: TensorDictBase) -> torch.Tensor:
+    """A per-row loss ``value`` reduced as the loss's own ``value_loss``/``actor_loss`` reduce it.
+
+    ``LossModule._reduce_loss`` applies the batch's loss masks and the loss's reduction
+    (``"mean"``, ``"sum"``, ``"none"``) with the per-row weights of
+    ``LossModule._maybe_get_priority_weight`` (prioritized replay weights, or
+    ``SAILLoss(mixing="weights")``'s teacher/agent weights).
+    """
+    return loss._reduce_loss(value, tensordict=batch, weights=loss._maybe_get_priority_weight(batch))
+
+
+#: Where the MLP of an actor ``TensorDictSequential(TensorDictModule(MLP), TanhModule)`` sits in
+#: ``TD3Loss.actor_network_params`` (and its target copy): the sequence's ``module`` list, its
+#: first entry, that ``TensorDictModule``'s ``module``.
+ACTOR_MLP_PATH = ("module", "0", "module")
+#: Where the MLP of a critic ``TensorDictModule(MLP)`` (e.g. ``ValueOperator``) sits in
+#: ``TD3Loss.qvalue_network_params`` (stacked over the ``num_qvalue_nets`` critics).
+CRITIC_MLP_PATH = ("module",)
+
+
+def mlp_params(params: TensorDictBase, path: tuple[str, ...]) -> TensorDictBase:
+    """The parameters of the MLP at ``path`` (:data:`ACTOR_MLP_PATH`, :data:`CRITIC_MLP_PATH`) in a
+    ``TD3Loss``'s functional parameters: entries ``"<layer index>", "weight" | "bias"``.
+
+    The layout is ``TensorDictParams.from_module``'s, which mirrors the modules' attribute
+    names; TorchRL documents no accessor for a sub-module's entry.
+    """
+    return params[path]
+
+
+def tanh_bounds(tanh) -> tuple[torch.Tensor, torch.Tensor]:
+    """The ``(low, high)`` action bounds a ``TanhModule`` maps onto, for its single out_key.
+
+    ``TanhModule`` registers them as buffers named ``<out_key>_low`` / ``<out_key>_high`` (a
+    nested out_key joined with ``"_"``).
+    """
+    key = tanh.out_keys[0] if isinstance(tanh.out_keys[0], str) else "_".join(tanh.out_keys[0])
+    return getattr(tanh, f"{key}_low"), getattr(tanh, f"{key}_high")
+
+
+# ----------------------------------------------------------------------------- envs and transforms
+def filtered_reset_keys(env) -> list:
+    """``env``'s effective reset keys: ``EnvBase._filtered_reset_keys`` (``reset_keys`` without the
+    nested ones no done key uses), what TorchRL's own transforms read their ``"_reset"`` from."""
+    return list(env._filtered_reset_keys)
+
+
+def reset_mask(reset_key, tensordict: TensorDictBase) -> torch.Tensor:
+    """Which entries of ``tensordict`` a reset starts afresh: ``torchrl.envs.transforms.utils._get_reset``
+    (the ``reset_key`` entry, all ``True`` when absent, reduced to the parent's batch shape)."""
+    return _get_reset(reset_key, tensordict)
+
+
+def multi_step(
+    tensordict: TensorDictBase, *, done_key, done_keys, reward_keys, mask_key, n_steps: int, gamma: float
+) -> TensorDictBase:
+    """TorchRL's n-step computation of ``MultiStepTransform``: ``torchrl.data.postprocs.postprocs._multi_step_func``.
+
+    The discounted sum of the next ``n_steps`` rewards within the episode, the observation it
+    bootstraps from and ``"steps_to_next_obs"``, for a ``[..., time]`` tensordict.
+    """
+    return _multi_step_func(
+        tensordict,
+        done_key=done_key,
+        done_keys=done_keys,
+        reward_keys=reward_keys,
+        mask_key=mask_key,
+        n_steps=n_steps,
+        gamma=gamma,
+    )
+
+
+def render_fps(env, default: int = 30) -> int:
+    """The wrapped gymnasium env's ``metadata["render_fps"]`` (MuJoCo tasks: ``1 / dt``), else ``default``.
+
+    ``env`` is a TorchRL env over a ``GymEnv`` (``env.base_env``); the gymnasium env is its
+    private ``_env``.
+    """
+    base = getattr(env, "base_env", env)
+    return int(base._env.metadata.get("render_fps", default))
+
+
+# ----------------------------------------------------------------------------- torch
+#: torch's base class of the dropout layers (``torch.nn.modules.dropout._DropoutNd``): TD3Update
+#: refuses an MLP holding one (its fused step has no train/eval mode).
+DropoutLayer = nn.modules.dropout._DropoutNd

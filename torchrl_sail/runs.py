@@ -1,0 +1,429 @@
+"""The run folder of a training script, and its life cycle: start, resume, log, summarise.
+
+A run folder (the example scripts' ``hydra.run.dir``) holds:
+
+- ``config.yaml``: the resolved config the run (last) went on with;
+- ``checkpoint/``: a TorchRL :class:`~torchrl.checkpoint.Checkpoint` (``manifest.json`` and
+  one entry per component), among them ``run``, the dict of :func:`new_run`: frames,
+  gradient steps, evaluations, logger states and the run's identity;
+- ``logs/scalars/<tag>.csv``: TorchRL's ``CSVLogger`` rows ``frames,value``, one file per tag
+  (``eval/return`` is ``logs/scalars/eval/return.csv``);
+- ``summary.json`` (:func:`write_summary`) and ``learning_curve.png``
+  (:func:`plot_learning_curve`), written when the run has done its budget.
+
+A results copy (``benchmarks/campaign.py --collect``) keeps ``config.yaml``, ``summary.json``
+and one ``scalars.csv`` (header ``tag,frames,value``) instead of ``logs/``; :func:`read_scalar`
+reads both.
+
+The life cycle, as the example scripts run it::
+
+    resuming = resume_mode(run_dir, cfg.resume, cfg.collector.total_frames)  # True, False, or None: skip
+    run = new_run(env=..., algo=..., seed=..., teacher=...)
+    checkpoint = Checkpoint(run=run, ...)                    # every component a stopped run needs
+    start_or_resume(checkpoint, run_dir, run, resuming, config=cfg)
+    ...  # train; run["frames"] etc. updated; checkpoint.save(checkpoint_dir(run_dir))
+    write_summary(run_dir, {...})
+"""
+
+from __future__ import annotations
+
+import csv
+import importlib.metadata
+import json
+import os
+import platform
+import resource
+import shutil
+import subprocess
+from collections.abc import Iterable
+from pathlib import Path
+
+import torch
+
+from torchrl_sail._compat import timeit_totals
+
+__all__ = [
+    "CHECKPOINT",
+    "COLLECTED_SCALARS",
+    "CONFIG",
+    "LEARNING_CURVE",
+    "SCALARS",
+    "SUMMARY",
+    "add_evaluation",
+    "checkpoint_dir",
+    "cpu_model",
+    "is_finished",
+    "last_checkpoint",
+    "new_run",
+    "plot_learning_curve",
+    "provenance",
+    "read_scalar",
+    "restore_run",
+    "resume_mode",
+    "start_or_resume",
+    "train_timing",
+    "truncate_scalar_logs",
+    "write_atomic",
+    "write_summary",
+]
+
+#: The names of a run folder's entries.
+CONFIG = "config.yaml"
+CHECKPOINT = "checkpoint"
+SUMMARY = "summary.json"
+LEARNING_CURVE = "learning_curve.png"
+SCALARS = Path("logs") / "scalars"
+COLLECTED_SCALARS = "scalars.csv"
+
+# The run's identity entries and the config keys they come from (named in resume errors).
+_IDENTITY_KEYS = {"env": "env", "algo": "algo", "seed": "seed", "teacher": "teacher.path"}
+
+
+def checkpoint_dir(run_dir: Path) -> Path:
+    """``<run_dir>/checkpoint``."""
+    return Path(run_dir) / CHECKPOINT
+
+
+def is_finished(summary: dict, total_frames: int) -> bool:
+    """Whether a run's ``summary.json`` shows its budget done: offline runs always, others at
+    ``total_frames`` frames or more.
+
+    Examples:
+        >>> is_finished({"frames": 3000}, 3000), is_finished({"frames": 2000}, 3000)
+        (True, False)
+        >>> is_finished({"offline": True}, 3000)
+        True
+    """
+    return bool(summary.get("offline")) or summary.get("frames", 0) >= total_frames
+
+
+def resume_mode(run_dir: Path, resume: bool | str, total_frames: int) -> bool | None:
+    """Whether this run continues the one in ``run_dir``: ``True``, ``False``, or ``None`` to skip it.
+
+    ``resume=False`` refuses a folder that holds a checkpoint (a run is never overwritten),
+    ``resume=True`` needs one (:func:`restore_run` says so). ``resume="auto"`` (for matrices that
+    must survive interruption) skips a run whose ``summary.json`` shows its budget done
+    (:func:`is_finished`), continues one with a checkpoint, and starts the rest afresh, first
+    removing the logs of a run that stopped before its first checkpoint (nothing can continue
+    them, and a fresh run would append to them).
+
+    Args:
+        run_dir (Path): the run folder.
+        resume (bool or "auto"): the script's ``resume=`` setting.
+        total_frames (int): the run's budget (``collector.total_frames``).
+
+    Raises:
+        FileExistsError: ``resume=False`` on a folder with a checkpoint.
+        FileNotFoundError: ``resume="auto"`` asked for more frames than a finished run without a
+            checkpoint holds.
+    """
+    run_dir = Path(run_dir)
+    checkpoint, summary = checkpoint_dir(run_dir), run_dir / SUMMARY
+    if resume == "auto":
+        if summary.exists():
+            done = json.loads(summary.read_text())
+            if is_finished(done, total_frames):
+                return None
+            if not checkpoint.exists():
+                raise FileNotFoundError(
+                    f"{run_dir} holds a finished {done.get('frames')}-frame run but no checkpoint to extend it to "
+                    f"collector.total_frames={total_frames}; choose another folder."
+                )
+        if checkpoint.exists():
+            return True
+        shutil.rmtree(run_dir / "logs", ignore_errors=True)
+        return False
+    if checkpoint.exists() and not resume:
+        raise FileExistsError(
+            f"{run_dir} already holds a run (checkpoint/). Continue it with resume=true "
+            f"(or resume=auto), or choose another folder with hydra.run.dir=..."
+        )
+    return resume
+
+
+def new_run(*, env: str, algo: str, seed: int, teacher: str | None) -> dict:
+    """The run's own state, saved with the checkpoint as its ``run`` component.
+
+    Counters (``frames``, ``gradient_steps``), the evaluations ``evals`` (``[frames, mean return]``
+    pairs, see :func:`add_evaluation`) and ``passed_teacher_at``, the non-CSV loggers' states
+    (``loggers``), and the ``identity`` a resumed run must match.
+
+    Examples:
+        >>> new_run(env="Hopper-v4", algo="sail", seed=0, teacher=None)["identity"]
+        {'env': 'Hopper-v4', 'algo': 'sail', 'seed': 0, 'teacher': None}
+    """
+    return {
+        "frames": 0,
+        "gradient_steps": 0,
+        "evals": [],
+        "passed_teacher_at": None,
+        "loggers": {},
+        "identity": {"env": env, "algo": algo, "seed": seed, "teacher": teacher},
+    }
+
+
+def add_evaluation(run: dict, frames: int, value: float, teacher_return: float) -> None:
+    """Records an evaluation's mean return at ``frames`` in ``run["evals"]``, and the first frame it
+    beat the teacher in ``run["passed_teacher_at"]``.
+
+    Examples:
+        >>> run = new_run(env="Hopper-v4", algo="sail", seed=0, teacher=None)
+        >>> for frames, value in [(1000, 5.0), (2000, 30.0), (3000, 12.0)]:
+        ...     add_evaluation(run, frames, value, teacher_return=20.0)
+        >>> run["evals"], run["passed_teacher_at"]
+        ([(1000, 5.0), (2000, 30.0), (3000, 12.0)], 2000)
+    """
+    run["evals"].append((frames, value))
+    if run["passed_teacher_at"] is None and value > teacher_return:
+        run["passed_teacher_at"] = frames
+
+
+def start_or_resume(
+    checkpoint,
+    run_dir: Path,
+    run: dict,
+    resuming: bool,
+    *,
+    optimizers: Iterable = (),
+    truncate_logs: bool = True,
+    config=None,
+) -> None:
+    """Restores ``checkpoint`` from ``run_dir`` when ``resuming`` (:func:`restore_run`), then writes
+    ``config`` (an OmegaConf config) to ``config.yaml``, resolved: the config the run goes on with.
+
+    Only a resume that passed its checks drops the run's old ``summary.json`` (a continued run is
+    unfinished until it ends). The ``optimizers`` keep the learning rates they were built with
+    from the config: a run continued with another learning rate (e.g. after a divergence) uses
+    it, not the saved one.
+    """
+    run_dir = Path(run_dir)
+    if resuming:
+        configured = [[group["lr"] for group in optimizer.param_groups] for optimizer in optimizers]
+        restore_run(checkpoint, run_dir, run, truncate_logs=truncate_logs)
+        for optimizer, lrs in zip(optimizers, configured):
+            for group, lr in zip(optimizer.param_groups, lrs):
+                group["lr"] = lr
+        if truncate_logs:
+            (run_dir / SUMMARY).unlink(missing_ok=True)
+    if config is not None:
+        from omegaconf import OmegaConf
+
+        OmegaConf.save(config, run_dir / CONFIG, resolve=True)
+
+
+def restore_run(checkpoint, run_dir: Path, run: dict, *, truncate_logs: bool = True) -> None:
+    """Restores every component of ``checkpoint`` from ``<run_dir>/checkpoint``, after checking it is this run's.
+
+    ``run`` is the :func:`new_run` dict of this run (a component of ``checkpoint``): its
+    ``identity`` is compared with the saved one first (a checkpoint saved without the
+    ``teacher`` entry is not checked on it). ``truncate_logs`` then drops the CSV rows logged
+    after the checkpoint's frame (:func:`truncate_scalar_logs`: this run logs them again);
+    offline runs, whose logs are not indexed by frames, keep theirs.
+
+    Raises:
+        FileNotFoundError: no ``manifest.json`` in the checkpoint folder.
+        ValueError: an unreadable checkpoint, or one written by another env, algo, seed or teacher.
+    """
+    path = checkpoint_dir(run_dir)
+    if not (path / "manifest.json").exists():
+        raise FileNotFoundError(
+            f"resume=true but there is no checkpoint at {path}: start without resume=true, or point "
+            f"hydra.run.dir at the run folder to continue."
+        )
+    this = dict(run["identity"])
+    try:
+        checkpoint.load(path, components=["run"])
+    except Exception as err:  # a damaged folder
+        raise ValueError(
+            f"checkpoint {path} is unreadable ({type(err).__name__}: {err}); delete it to start over."
+        ) from err
+    for key, saved in run["identity"].items():
+        if saved != this[key]:
+            name = _IDENTITY_KEYS.get(key, key)
+            raise ValueError(
+                f"resume: {path} was written with {name}={saved!r}, "
+                f"this run has {name}={this[key]!r}; use the same value."
+            )
+    checkpoint.load(path)
+    if truncate_logs:
+        truncate_scalar_logs(run_dir, run["frames"])
+
+
+def truncate_scalar_logs(run_dir: Path, frames: int) -> list[Path]:
+    """Drops the rows logged after ``frames`` from every CSV of ``<run_dir>/logs/scalars``; returns
+    the files it rewrote (each atomically).
+    """
+    truncated = []
+    for path in sorted((Path(run_dir) / SCALARS).glob("**/*.csv")):
+        lines = path.read_text().splitlines(keepends=True)
+        kept = [line for line in lines if line.strip() and int(float(line.split(",")[0])) <= frames]
+        if len(kept) != len(lines):
+            write_atomic(path, "".join(kept))
+            truncated.append(path)
+    return truncated
+
+
+def last_checkpoint(run_dir: Path, run: dict) -> str | None:
+    """``"<run_dir>/checkpoint, frame <n>"`` once a checkpoint is saved (for error messages), else ``None``."""
+    path = checkpoint_dir(run_dir)
+    return f"{path}, frame {run['frames']}" if (path / "manifest.json").exists() else None
+
+
+def read_scalar(run_dir: Path, tag: str) -> list[tuple[int, float]]:
+    """The ``(frames, value)`` rows of one logged scalar, as logged (file order, every row).
+
+    Reads ``<run_dir>/logs/scalars/<tag>.csv`` (TorchRL's ``CSVLogger``), or, in a results copy
+    holding ``scalars.csv`` (``tag,frames,value``), the rows of ``tag`` there. A tag never
+    logged gives ``[]``.
+
+    Raises:
+        ValueError: a row that is not ``frames,value``, naming the file and line.
+
+    Examples:
+        >>> import tempfile
+        >>> run_dir = Path(tempfile.mkdtemp())
+        >>> (run_dir / "logs" / "scalars" / "eval").mkdir(parents=True)
+        >>> _ = (run_dir / "logs" / "scalars" / "eval" / "return.csv").write_text("1000,12.5\\n2000,30.0\\n")
+        >>> read_scalar(run_dir, "eval/return"), read_scalar(run_dir, "alpha")
+        ([(1000, 12.5), (2000, 30.0)], [])
+    """
+    run_dir = Path(run_dir)
+    collected = run_dir / COLLECTED_SCALARS
+    if collected.exists():
+        with open(collected, newline="") as file:
+            rows = [
+                (line, row["frames"], row["value"])
+                for line, row in enumerate(csv.DictReader(file), 2)
+                if row["tag"] == tag
+            ]
+        return [_scalar_row(collected, line, frames, value) for line, frames, value in rows]
+    path = run_dir / SCALARS / f"{tag}.csv"
+    if not path.exists():
+        return []
+    out = []
+    for line, text in enumerate(path.read_text().splitlines(), 1):
+        if text.strip():
+            fields = text.split(",")
+            out.append(_scalar_row(path, line, *fields) if len(fields) == 2 else _bad_row(path, line, text))
+    return out
+
+
+def _scalar_row(path: Path, line: int, frames, value) -> tuple[int, float]:
+    try:
+        return int(float(frames)), float(value)
+    except (TypeError, ValueError):
+        _bad_row(path, line, f"{frames},{value}")
+
+
+def _bad_row(path: Path, line: int, text: str):
+    raise ValueError(f"{path}, line {line}: expected 'frames,value', got {text!r}")
+
+
+def train_timing(train_clock: tuple[float, int] | None, *, end: float, frames: int) -> dict:
+    """Summary entries on the part of a run after warm-up: its frames, seconds and frames per
+    second, and TorchRL ``timeit``'s total seconds and call counts per section since
+    ``train_clock`` (``(time, frames)`` when the timed part began, after a ``timeit.erase()``;
+    ``None``: the run ended within warm-up)."""
+    if train_clock is None:
+        return {"train_frames": 0, "train_seconds": 0.0, "train_frames_per_second": None}
+    t0, frames0 = train_clock
+    seconds = end - t0
+    sections = timeit_totals()
+    return {
+        "train_frames": frames - frames0,
+        "train_seconds": seconds,
+        "train_frames_per_second": (frames - frames0) / max(seconds, 1e-9),
+        "time_seconds": {name: total for name, (total, _) in sections.items()},
+        "counts": {"frames": frames - frames0, **{name: count for name, (_, count) in sections.items()}},
+    }
+
+
+def plot_learning_curve(run_dir: Path, *, teacher_return: float, alpha_switch_frame: int | None, title: str) -> Path:
+    """``learning_curve.png`` (the paper's Figure 2 style): the logged training and evaluation
+    returns against frames, the teacher's return dashed and the alpha switch dotted."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for tag, label, style in (
+        ("train/dense_return", "training return (noisy actions)", {"alpha": 0.35}),
+        ("eval/return", "eval return (deterministic)", {"marker": "o", "ms": 3}),
+    ):
+        rows = read_scalar(run_dir, tag)
+        if rows:
+            ax.plot([frames for frames, _ in rows], [value for _, value in rows], label=label, **style)
+    ax.axhline(teacher_return, ls="--", c="gray", label=f"teacher ({teacher_return:.0f})")
+    if alpha_switch_frame is not None:
+        ax.axvline(alpha_switch_frame, ls=":", c="red", label="alpha -> 0 (first promotion)")
+    ax.set(xlabel="environment frames", ylabel="dense episode return", title=title)
+    ax.legend(loc="best", fontsize=8)
+    fig.tight_layout()
+    path = Path(run_dir) / LEARNING_CURVE
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def write_summary(run_dir: Path, summary: dict, *, code_dir: Path | None = None) -> dict:
+    """Writes ``summary.json`` (atomically): ``summary``, then the process's peak memory
+    (``peak_memory_mb``), the ``learning_curve`` file name and the :func:`provenance` of
+    ``code_dir``. Returns what it wrote."""
+    summary = {
+        **summary,
+        "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,  # Linux: KiB
+        "learning_curve": LEARNING_CURVE,
+        "provenance": provenance(code_dir),
+    }
+    write_atomic(Path(run_dir) / SUMMARY, json.dumps(summary, indent=2))
+    return summary
+
+
+def provenance(code_dir: Path | None = None) -> dict:
+    """What produced a run: the git commit of ``code_dir`` (default: this package's folder;
+    ``None`` outside a git checkout), whether tracked files differed from it (``dirty``), the
+    library versions, the Python version, the CPU and torch's thread count."""
+    cwd = Path(code_dir) if code_dir is not None else Path(__file__).resolve().parent
+
+    def git(*args):
+        try:
+            out = subprocess.run(["git", *args], cwd=cwd, capture_output=True, text=True, timeout=30)
+        except (OSError, subprocess.SubprocessError):
+            return None
+        return out.stdout.strip() if out.returncode == 0 else None
+
+    commit = git("rev-parse", "HEAD")
+    status = git("status", "--porcelain", "--untracked-files=no") if commit else None
+    versions = {
+        name: importlib.metadata.version(name)
+        for name in ("torchrl_sail", "torch", "torchrl", "tensordict", "gymnasium", "mujoco")
+    }
+    return {
+        "commit": commit,
+        "dirty": None if status is None else bool(status),
+        "versions": versions,
+        "python": platform.python_version(),
+        "cpu": platform.processor() or platform.machine(),
+        "cpu_model": cpu_model(),
+        "torch_threads": torch.get_num_threads(),
+    }
+
+
+def cpu_model() -> str | None:
+    """The CPU's model name (Linux ``/proc/cpuinfo``), ``None`` where it cannot be read."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return None
+
+
+def write_atomic(path: Path, text: str) -> None:
+    """Writes ``path`` so that a crash never leaves it half-written (a temporary file, then a rename)."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
