@@ -19,37 +19,28 @@ check_mujoco_gl()  # before TorchRL imports MuJoCo, which loads the MUJOCO_GL ba
 
 import math
 import time
-from pathlib import Path
 
 import hydra
 import torch
 import tqdm
-from config_schema import check_config, check_script, register_config_schema
-from hydra.core.hydra_config import HydraConfig
-from run_utils import evaluate, log_metrics, logger_states, make_loggers, make_run, seed_everything, write_run_summary
+from config_schema import register_config_schema
+from run_utils import evaluate, log_metrics, logger_states, make_loggers, make_run, start_run, write_run_summary
 from torchrl.checkpoint import Checkpoint, GlobalRNGState
 from torchrl.objectives import BCLoss
 from utils import make_agent, make_env, make_teacher
 from video import log_video, make_render_env
 
 from torchrl_sail import DivergenceCheck
-from torchrl_sail.runs import checkpoint_dir, resume_mode, start_or_resume
+from torchrl_sail.runs import checkpoint_dir, start_or_resume
 
 register_config_schema()  # the typed schema conf/config.yaml extends: Hydra checks every value against it
 
 
 @hydra.main(version_base="1.3", config_path="../conf", config_name="config")
 def main(cfg):  # noqa: F821
-    check_script(cfg, "bc.py")  # the off-policy methods: sail_td3.py; algo=gail, pofd: gail.py
-    check_config(cfg)
-    if cfg.threads:
-        torch.set_num_threads(cfg.threads)
-    run_dir = Path(HydraConfig.get().runtime.output_dir)
-    resuming = resume_mode(run_dir, cfg.resume, cfg.collector.total_frames)
-    if resuming is None:  # resume=auto on a finished run (e.g. a rerun matrix)
-        print(f"{run_dir} holds a finished run: skipped (resume=auto).")
+    run_dir, resuming = start_run(cfg, "bc.py")  # the off-policy methods: sail_td3.py; algo=gail, pofd: gail.py
+    if resuming is None:
         return
-    seed_everything(cfg.seed)
 
     env = make_env(cfg, cfg.seed + 10_000)  # evaluation only
     teacher, teacher_return, teacher_source = make_teacher(cfg, env)

@@ -36,13 +36,11 @@ check_mujoco_gl()  # before TorchRL imports MuJoCo, which loads the MUJOCO_GL ba
 
 import math
 import time
-from pathlib import Path
 
 import hydra
 import torch
 import tqdm
-from config_schema import check_config, check_script, register_config_schema
-from hydra.core.hydra_config import HydraConfig
+from config_schema import register_config_schema
 from run_utils import (
     crossings,
     log_metrics,
@@ -50,7 +48,7 @@ from run_utils import (
     make_loggers,
     make_run,
     record_evaluation,
-    seed_everything,
+    start_run,
     write_run_summary,
 )
 from torchrl.checkpoint import Checkpoint, GlobalRNGState
@@ -70,7 +68,7 @@ from utils import (
 from video import log_video, make_render_env
 
 from torchrl_sail import TRANSITION_KEYS, DiscriminatorLoss, DivergenceCheck, MixedReplayBuffer, observation_normalizer
-from torchrl_sail.runs import checkpoint_dir, last_checkpoint, resume_mode, start_or_resume, train_timing
+from torchrl_sail.runs import checkpoint_dir, last_checkpoint, start_or_resume, train_timing
 
 register_config_schema()  # the typed schema conf/config.yaml extends: Hydra checks every value against it
 
@@ -90,16 +88,9 @@ def lr_factor(updates_done: int, total_updates: int) -> float:
 
 @hydra.main(version_base="1.3", config_path="../conf", config_name="config")
 def main(cfg):  # noqa: F821
-    check_script(cfg, "gail.py")  # the off-policy methods: sail_td3.py; algo=bc: bc.py
-    check_config(cfg)
-    if cfg.threads:
-        torch.set_num_threads(cfg.threads)
-    run_dir = Path(HydraConfig.get().runtime.output_dir)
-    resuming = resume_mode(run_dir, cfg.resume, cfg.collector.total_frames)
-    if resuming is None:  # resume=auto on a finished run (e.g. a rerun matrix)
-        print(f"{run_dir} holds a finished run: skipped (resume=auto).")
+    run_dir, resuming = start_run(cfg, "gail.py")  # the off-policy methods: sail_td3.py; algo=bc: bc.py
+    if resuming is None:
         return
-    seed_everything(cfg.seed)
 
     p, d, r = cfg.algo.ppo, cfg.optim.discriminator, cfg.algo.reward
     env, eval_env = make_env(cfg, cfg.seed), make_env(cfg, cfg.seed + 10_000)

@@ -9,11 +9,13 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from config_schema import check_config, check_script
+from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.record.loggers import get_logger
 
-from torchrl_sail.runs import add_evaluation, new_run, plot_learning_curve, write_summary
+from torchrl_sail.runs import add_evaluation, new_run, plot_learning_curve, resume_mode, write_summary
 
 EXAMPLES_DIR = Path(__file__).resolve().parent
 
@@ -22,6 +24,25 @@ def seed_everything(seed: int) -> None:
     random.seed(seed)
     np.random.seed(seed)
     torch.manual_seed(seed)
+
+
+def start_run(cfg: DictConfig, script: str) -> tuple[Path, bool | None]:
+    """Check the config for ``script``, set threads and seeds, and say how the run folder starts.
+
+    Returns the run folder (Hydra's output directory) and :func:`~torchrl_sail.runs.resume_mode`'s
+    answer; ``None`` means a finished run under ``resume=auto``, which the caller skips.
+    """
+    check_script(cfg, script)
+    check_config(cfg)
+    if cfg.threads:
+        torch.set_num_threads(cfg.threads)
+    run_dir = Path(HydraConfig.get().runtime.output_dir)
+    resuming = resume_mode(run_dir, cfg.resume, cfg.collector.total_frames)
+    if resuming is None:  # resume=auto on a finished run (e.g. a rerun matrix)
+        print(f"{run_dir} holds a finished run: skipped (resume=auto).")
+    else:
+        seed_everything(cfg.seed)
+    return run_dir, resuming
 
 
 def crossings(every: int, start: int, before: int, now: int) -> int:

@@ -50,8 +50,15 @@ def _seed():
 
 # The slow lane: whole modules that run the scripts end to end (subprocesses), learn, or build
 # the docs; `python -m pytest -m "not slow"` is the unit lane.
-SLOW_MODULES = {"test_example", "test_methods", "test_evaluate", "test_learning", "test_ray", "test_readme",
-                "test_docs"}
+SLOW_MODULES = {
+    "test_example",
+    "test_methods",
+    "test_evaluate",
+    "test_learning",
+    "test_ray",
+    "test_readme",
+    "test_docs",
+}
 
 
 def pytest_collection_modifyitems(config, items):

@@ -4,29 +4,17 @@
 from __future__ import annotations
 
 import csv
-import importlib.util
 import json
 import shlex
-import sys
 from pathlib import Path
 
 import pytest
 import yaml
+from benchmark_scripts import load_benchmark
 
-BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
-
-
-def load_script(name: str):
-    spec = importlib.util.spec_from_file_location(f"benchmarks_{name}", BENCHMARKS / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up there
-    spec.loader.exec_module(module)
-    return module
-
-
-aggregate = load_script("aggregate")
-run_matrix = load_script("run_matrix")
-make_teachers = load_script("make_teachers")
+aggregate = load_benchmark("aggregate")
+run_matrix = load_benchmark("run_matrix")
+make_teachers = load_benchmark("make_teachers")
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 

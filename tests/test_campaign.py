@@ -3,27 +3,14 @@
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
-import sys
 from collections import Counter
-from pathlib import Path
 
 import pytest
 import yaml
+from benchmark_scripts import load_benchmark
 
-BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
-
-
-def load_script(name: str):
-    spec = importlib.util.spec_from_file_location(f"benchmarks_{name}", BENCHMARKS / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up there
-    spec.loader.exec_module(module)
-    return module
-
-
-campaign = load_script("campaign")
+campaign = load_benchmark("campaign")
 
 ENVS = ["Hopper-v4", "HalfCheetah-v4", "Walker2d-v4", "Swimmer-v4"]
 
@@ -132,7 +119,7 @@ def test_collect_copies_finished_runs_compactly_and_aggregate_reads_them(tmp_pat
         "eval/return,2000,30.0",
         "d/accuracy_agent,1000,0.75",
     ]
-    aggregate = load_script("aggregate")
+    aggregate = load_benchmark("aggregate")
     assert aggregate.read_scalar(target, "eval/return") == [(1000, 12.5), (2000, 30.0)]
     assert aggregate.read_scalar(target, "d/accuracy_agent") == [(1000, 0.75)]
 

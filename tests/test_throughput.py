@@ -2,16 +2,12 @@
 
 from __future__ import annotations
 
-import importlib.util
 import sys
-from pathlib import Path
 
 import pytest
+from benchmark_scripts import load_benchmark
 
-PATH = Path(__file__).resolve().parents[1] / "benchmarks" / "throughput.py"
-_spec = importlib.util.spec_from_file_location("throughput", PATH)
-throughput = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(throughput)
+throughput = load_benchmark("throughput")
 
 
 def rec(trainer, threads, fps, rnd=0, **extra):
