@@ -376,6 +376,25 @@ class TestTD3Update:
         # bf16 actually ran: the losses differ from fp32 beyond float32 rounding
         assert not torch.equal(m16["loss_qvalue"], m32["loss_qvalue"])
 
+    def test_bf16_critic_output_not_rounded(self):
+        """Under bf16 the critics' last layer runs in float32: Q near 100 is not rounded to bfloat16's 0.5 grid.
+
+        With the last bias at 100.3 and small hidden contributions, a bfloat16 output could only
+        be 100.0 or 100.5; the fused step's Q must stay within the hidden layers' rounding (1e-2)."""
+        torch.manual_seed(0)
+        base = make_loss(UNIT, num_cells=(64, 64))
+        with torch.no_grad():
+            for name in ("qvalue_network_params", "target_qvalue_network_params"):
+                getattr(base, name)["module", "4", "bias"].fill_(100.3)
+        q = {}
+        for precision in ("fp32", "bf16"):
+            update = make_update(copy.deepcopy(base), "fused", precision=precision)
+            torch.manual_seed(1)
+            q[precision] = update.critic_step(make_batch(UNIT, seed=0))["q_mean"]
+        assert 99.0 < q["fp32"] < 102.0
+        assert (q["bf16"] - q["fp32"]).abs() < 1e-2
+        assert q["bf16"] != q["fp32"]  # the hidden layers did run in bfloat16
+
     def test_bf16_actor_gradient_survives_saturation(self):
         """The actor's tanh runs in float32 under bf16: a saturating policy keeps its gradient.
 
@@ -393,6 +412,55 @@ class TestTD3Update:
             grads[precision] = torch.cat([g.flatten() for g in recorded[-1] if g is not None])
         assert grads["fp32"].norm() > 0
         assert (grads["bf16"] - grads["fp32"]).norm() <= 0.05 * grads["fp32"].norm()
+
+    @pytest.mark.parametrize("move", ["to_float64", "swap_tensors", "new_estimator", "estimator_keys"])
+    def test_follows_the_loss_after_binding(self, move):
+        """What the fused step bound moves after it is built: it binds again and still equals the reference.
+
+        Without binding again, its Polyak step would move the old float32 storage and its actor
+        loss read a stale critic, with no error."""
+        torch.manual_seed(0)
+        base = make_loss(UNIT)
+        out = {}
+        for implementation in ("loss", "fused"):
+            loss = copy.deepcopy(base)
+            update = make_update(loss, implementation)
+            dtype = torch.float32
+            if move == "to_float64":
+                loss.to(torch.float64)
+                dtype = torch.float64
+            elif move == "swap_tensors":  # new storage under the same parameter objects (not the tanh bounds)
+                for params in (loss.qvalue_network_params, loss.target_actor_network_params):
+                    for key, param in params.items(True, True):
+                        if key[-1] in ("weight", "bias"):
+                            torch.utils.swap_tensors(param, nn.Parameter(param.detach() + 0.1, param.requires_grad))
+            elif move == "new_estimator":
+                loss.make_value_estimator(gamma=0.5)
+            else:
+                loss.value_estimator.set_keys(reward="shaped", terminated="ended", done="over")
+            grads = recording(update)
+            torch.manual_seed(1)
+            metrics = []
+            for i in range(4):
+                batch = make_batch(UNIT, seed=i).apply(lambda t: t.to(dtype) if t.is_floating_point() else t)
+                batch["next", "shaped"] = 10 + batch["next", "reward"]
+                batch["next", "ended"] = ~batch["next", "terminated"]
+                batch["next", "over"] = batch["next", "ended"] | batch["next", "truncated"]
+                metrics.append(update(batch, update_actor=i % 2 == 0))
+            out[implementation] = (metrics, grads, loss.state_dict())
+        assert_same(out, atol=1e-5)
+        state = out["fused"][2]
+        assert state["target_qvalue_network_params.module.0.weight"].dtype == (
+            torch.float64 if move == "to_float64" else torch.float32
+        )
+
+    def test_refuses_what_it_cannot_bind_again(self):
+        loss = make_loss(UNIT)
+        update = make_update(loss, "fused")
+        update(make_batch(UNIT, seed=0), update_actor=True)
+        loss.make_value_estimator(gamma=0.9, lmbda=0.9, value_type="tdlambda")
+        with pytest.raises(ValueError, match="TD\\(0\\) target"):
+            update(make_batch(UNIT, seed=1), update_actor=True)
 
     def test_compiled_equals_eager(self):
         """torch.compile of the whole step (TorchRL's compile_with_warmup pattern) gives the same step."""

@@ -76,25 +76,38 @@ def _mlp_program(mlp: nn.Module, params: TensorDictBase, what: str) -> list:
 _IN_PLACE = {nn.ReLU: torch.relu_, nn.Tanh: torch.tanh_}
 
 
+def _linear(x: torch.Tensor, weight: torch.Tensor, bias: torch.Tensor | None, stacked: bool) -> torch.Tensor:
+    if not stacked:
+        return F.linear(x, weight, bias)
+    return torch.bmm(weight, x) if bias is None else torch.baddbmm(bias.unsqueeze(-1), weight, x)
+
+
 def _run(program: list, x: torch.Tensor) -> torch.Tensor:
     """Evaluates an MLP program on ``x`` (``[B, in]``).
 
     Stacked ``[n, out, in]`` parameters give ``[n, B, out]``: every layer is one batched
     product for the whole ensemble, computed feature-major (``W @ h^T``) so that the weight
     gradients come out contiguous instead of as transposes that autograd would copy.
+
+    The last layer runs in the parameters' own precision even under autocast: it is a thin
+    product (``out`` is 1 for a critic), and its output is what the TD target, the min over
+    critics and the tanh read. In bfloat16 a Q value of 100 rounds to a multiple of 0.5, the
+    size of SAIL's per-step reward.
     """
+    last = max(i for i, layer in enumerate(program) if isinstance(layer, tuple))
     stacked = fresh = False
-    for layer in program:
+    for i, layer in enumerate(program):
         if isinstance(layer, tuple):
             weight, bias = layer
             fresh = True
-            if weight.dim() == 2:
-                x = F.linear(x, weight, bias)
-                continue
-            if not stacked:
+            if weight.dim() == 3 and not stacked:
                 x = x.mT.expand(weight.shape[0], *x.mT.shape)
                 stacked = True
-            x = torch.bmm(weight, x) if bias is None else torch.baddbmm(bias.unsqueeze(-1), weight, x)
+            if i == last and torch.is_autocast_enabled(x.device.type):
+                with torch.autocast(x.device.type, enabled=False):
+                    x = _linear(x.to(weight.dtype), weight, bias, stacked)
+            else:
+                x = _linear(x, weight, bias, stacked)
         elif fresh and type(layer) in _IN_PLACE:
             x = _IN_PLACE[type(layer)](x)
         else:
@@ -169,10 +182,11 @@ class TD3Update:
             ``loss.actor_network_params``.
         target_updater (SoftUpdate): the target updater built on ``loss``.
         implementation (str, optional): ``"fused"`` or ``"loss"``. Defaults to ``"fused"``.
-        precision (str, optional): ``"fp32"`` or ``"bf16"`` (autocast of the network
-            evaluations to bfloat16: AMX on recent Xeons, tensor cores on CUDA; the
-            parameters, optimizer states, loss reductions and the actor's tanh stay
-            float32). ``"bf16"`` needs ``implementation="fused"``. Defaults to ``"fp32"``.
+        precision (str, optional): ``"fp32"`` or ``"bf16"``: the hidden layers' products
+            in bfloat16 (autocast: AMX on recent Xeons, tensor cores on CUDA); the last layer
+            of every network, the min over the target critics, the TD target, the actor's tanh,
+            the losses, the parameters and the optimizer states in the parameters' precision.
+            ``"bf16"`` needs ``implementation="fused"``. Defaults to ``"fp32"``.
         nstep_key (NestedKey, optional): where each row's n-step transition is (an
             :class:`~torchrl_sail.NStepTransform`'s ``out_key``, e.g. ``"next_n"``): adds
             DDPGfD's n-step TD loss to the critic loss. Defaults to ``None`` (1-step only).
@@ -264,6 +278,7 @@ class TD3Update:
         self.implementation = implementation
         self.precision = precision
         self._device_type = loss.max_action.device.type
+        self._binding = None
         if implementation == "fused":
             self._bind()
 
@@ -350,7 +365,41 @@ class TD3Update:
         self._critic_first = _first_detached(self._critic)
         # SoftUpdate's own source/target pairing, as flat lists for one foreach call.
         self._polyak_sources, self._polyak_targets = soft_update_pairs(self.target_updater)
-        self._tau = 1.0 - self.target_updater.eps
+        self._bound_tensors = [
+            tensor
+            for program in (self._actor, self._target_actor, self._critic, self._target_critic)
+            for layer in program
+            if isinstance(layer, tuple)
+            for tensor in layer
+            if tensor is not None
+        ]
+        self._device_type = self._bound_tensors[0].device.type
+        self._binding = self._binding_state()
+
+    def _binding_state(self) -> tuple:
+        """What the bound views depend on, cheap to read before every step (a few microseconds).
+
+        ``loss.to(dtype or device)`` and ``torch.utils.swap_tensors`` give the loss's parameters
+        new storage (the parameter objects stay) and replace the TanhModule's bound buffers;
+        ``make_value_estimator`` and ``set_keys`` replace or rename what the target reads.
+        In-place changes (optimizer steps, ``load_state_dict``) keep all of it.
+        """
+        loss = self.loss
+        estimator = loss.value_estimator
+        return (
+            tuple(tensor.data_ptr() for tensor in self._bound_tensors),
+            tuple(id(bound) for bound in tanh_bounds(self._tanh)),
+            id(estimator),
+            tuple(vars(estimator.tensor_keys).values()),
+            tuple(vars(loss.tensor_keys).values()),
+            id(loss.actor_network),
+            id(loss.qvalue_network),
+        )
+
+    def _ensure_bound(self) -> None:
+        """Binds again (checking the loss again) when what the fused step bound has moved."""
+        if self.implementation == "fused" and self._binding_state() != self._binding:
+            self._bind()
 
     def _autocast(self):
         dtype = _PRECISIONS[self.precision]
@@ -358,9 +407,10 @@ class TD3Update:
 
     def _action(self, program: list, obs: torch.Tensor) -> torch.Tensor:
         # TanhModule's map: tanh, optional clamp, affine map onto [low, high] when not [-1, 1].
-        # The squashing runs in float32 also under bf16 autocast: in bfloat16, tanh(x) rounds to
-        # exactly +-1 from |x| ~ 3 on, and its gradient 1 - tanh^2 to 0, which stalls the actor.
-        feature = _run(program, obs).float().tanh()
+        # The squashing runs in the parameters' precision also under bf16 autocast (the last layer
+        # does, see _run): in bfloat16, tanh(x) rounds to exactly +-1 from |x| ~ 3 on, and its
+        # gradient 1 - tanh^2 to 0, which stalls the actor.
+        feature = _run(program, obs).tanh()
         tanh = self._tanh
         if tanh.clamp:
             eps = torch.finfo(feature.dtype).resolution
@@ -409,6 +459,7 @@ class TD3Update:
         Args:
             batch (TensorDictBase): a ``[B]`` batch of transitions with the loss's keys.
         """
+        self._ensure_bound()
         loss = self.loss
         nstep = self.nstep_key is not None
         if self.implementation == "loss":
@@ -431,7 +482,7 @@ class TD3Update:
                     if nstep:
                         target_n = self._target(view, noise_n)
                 # Q(s, a) of the sampled rows, shared by both TD losses
-                q = _run(self._critic, self._critic_input(batch, action)).squeeze(-1).float()  # [num_qvalue_nets, B]
+                q = _run(self._critic, self._critic_input(batch, action)).squeeze(-1)  # [num_qvalue_nets, B]
                 loss_q = self._td_loss(q, target, batch)
                 if nstep:
                     loss_n = self._td_loss(q, target_n, view)
@@ -473,7 +524,7 @@ class TD3Update:
         if terminated is None:  # the estimator's fallback
             terminated = batch["next", keys.done]
         not_terminated = (~terminated).int()
-        return (reward + gamma * not_terminated * next_q.float()).squeeze(-1)
+        return (reward + gamma * not_terminated * next_q).squeeze(-1)
 
     def _td_loss(self, q: torch.Tensor, target: torch.Tensor, batch: TensorDictBase) -> torch.Tensor:
         """``value_loss``'s reduction: the distance summed over the critics, then the loss's masks and weights."""
@@ -486,13 +537,14 @@ class TD3Update:
         Args:
             batch (TensorDictBase): a ``[B]`` batch of transitions with the loss's keys.
         """
+        self._ensure_bound()
         loss = self.loss
         with self._autocast():
             if self.implementation == "loss":
                 loss_a, _ = loss.actor_loss(batch)
             else:
                 pi = self._action(self._actor, self._actor_input(batch))
-                q_pi = _run(self._critic_first, self._critic_input(batch, pi)).squeeze(-1).float()
+                q_pi = _run(self._critic_first, self._critic_input(batch, pi)).squeeze(-1)
                 loss_a = reduce_loss(loss, -q_pi, batch)
         loss_a.backward()
         if self.actor_max_grad_norm is not None:
@@ -506,8 +558,9 @@ class TD3Update:
         if self.implementation == "loss":
             self.target_updater.step()
         else:
+            self._ensure_bound()
             with torch.no_grad():
-                torch._foreach_lerp_(self._polyak_targets, self._polyak_sources, self._tau)
+                torch._foreach_lerp_(self._polyak_targets, self._polyak_sources, 1.0 - self.target_updater.eps)
 
     def __repr__(self) -> str:
         nstep = "" if self.nstep_key is None else f", nstep_key={self.nstep_key!r}, nstep_weight={self.nstep_weight}"

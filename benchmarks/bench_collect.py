@@ -1,0 +1,153 @@
+"""What one collected frame costs, layer by layer, on the example's training env and policy.
+
+    python benchmarks/bench_collect.py [--env Hopper-v4] [--frames 5000] [--rounds 3] [--threads 1] \
+        [--out benchmarks/results/collect/collect.json]
+
+Each layer adds one piece on top of the previous one and is timed over ``--frames`` steps
+(episodes reset as they end), median over ``--rounds``:
+
+- ``gymnasium``: ``gymnasium.make(env)`` stepped with NumPy actions: the simulator and its wrappers;
+- ``GymEnv``: TorchRL's ``GymEnv`` through ``step_and_maybe_reset`` (what the collector calls);
+- ``env stack``: ``make_sail_env``, the transforms of the example (time feature, delayed reward, ...);
+- ``+ policy``: the example's exploration policy (actor, tanh, Gaussian noise) before each step;
+- ``Collector``: TorchRL's ``Collector`` over the same env and policy, ``frames_per_batch=1000``.
+
+The differences between consecutive layers are what each one costs per frame.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import torch
+from hydra import compose, initialize_config_dir
+from torchrl.collectors import Collector
+from torchrl.envs import ExplorationType, GymEnv, set_exploration_type
+
+from torchrl_sail.runs import cpu_model
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "examples"))
+
+from config_schema import register_config_schema  # noqa: E402
+from utils import make_agent, make_env  # noqa: E402
+
+LAYERS = ("gymnasium", "GymEnv", "env stack", "+ policy", "Collector")
+
+
+def parse_args(argv=None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--env", default="Hopper-v4")
+    parser.add_argument("--frames", type=int, default=5000)
+    parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--threads", type=int, default=1)
+    parser.add_argument("--overrides", default="", help="Hydra overrides of the example's config")
+    parser.add_argument("--out", type=Path, default=None, help="JSON file for the table and the setup")
+    return parser.parse_args(argv)
+
+
+def example_config(env: str, overrides: str):
+    register_config_schema()
+    with initialize_config_dir(str(REPO / "conf"), version_base="1.3"):
+        return compose("config", [f"env={env}", *overrides.split()])
+
+
+def time_gymnasium(name: str, frames: int) -> float:
+    env = gym.make(name)
+    env.reset(seed=0)
+    actions = np.random.default_rng(0).uniform(-1, 1, (frames, *env.action_space.shape)).astype(np.float32)
+    start = time.perf_counter()
+    for action in actions:
+        _, _, terminated, truncated, _ = env.step(action)
+        if terminated or truncated:
+            env.reset()
+    return time.perf_counter() - start
+
+
+def time_env(env, frames: int, policy=None) -> float:
+    """``frames`` steps of ``env`` through ``step_and_maybe_reset``, as the collector runs them."""
+    td = env.reset()
+    actions = env.action_spec.rand((frames,))
+    start = time.perf_counter()
+    for i in range(frames):
+        if policy is None:
+            td["action"] = actions[i]
+        else:
+            td = policy(td)
+        _, td = env.step_and_maybe_reset(td)
+    return time.perf_counter() - start
+
+
+def time_collector(env, policy, frames: int) -> float:
+    collector = Collector(env, policy, frames_per_batch=1000, total_frames=frames + 1000, track_traj_ids=False)
+    batches = iter(collector)
+    next(batches)  # the first batch builds the collector's buffers
+    start = time.perf_counter()
+    for _ in range(frames // 1000):
+        next(batches)
+    elapsed = time.perf_counter() - start
+    collector.shutdown()
+    return elapsed
+
+
+def measure(args) -> dict[str, list[float]]:
+    cfg = example_config(args.env, args.overrides)
+    env = make_env(cfg, 0)
+    _, _, policy = make_agent(cfg, env)
+    times = {layer: [] for layer in LAYERS}
+    with torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):
+        for _ in range(args.rounds):
+            times["gymnasium"].append(time_gymnasium(args.env, args.frames))
+            times["GymEnv"].append(time_env(GymEnv(args.env), args.frames))
+            times["env stack"].append(time_env(env, args.frames))
+            times["+ policy"].append(time_env(env, args.frames, policy))
+            times["Collector"].append(time_collector(env, policy, args.frames))
+    return {layer: [1e3 * t / args.frames for t in ts] for layer, ts in times.items()}
+
+
+def cpu_has_bf16() -> bool:
+    """Whether the CPU has native bfloat16 products (AVX512-BF16 or AMX), from /proc/cpuinfo."""
+    try:
+        flags = Path("/proc/cpuinfo").read_text()
+    except OSError:
+        return False
+    return "avx512_bf16" in flags or "amx_bf16" in flags
+
+
+def main(argv=None) -> None:
+    args = parse_args(argv)
+    torch.set_num_threads(args.threads)
+    ms = measure(args)
+    rows, previous = [], 0.0
+    print(f"{'layer':<12} {'ms/frame':>9} {'added':>7}")
+    for layer in LAYERS:
+        median = statistics.median(ms[layer])
+        rows.append({"layer": layer, "ms_per_frame": median, "added": median - previous, "rounds": ms[layer]})
+        print(f"{layer:<12} {median:9.3f} {median - previous:+7.3f}")
+        previous = median
+    if args.out is not None:
+        setup = {
+            "command": " ".join(["python", "benchmarks/bench_collect.py", *(argv or sys.argv[1:])]),
+            "cpu_model": cpu_model(),
+            "avx512_bf16_or_amx": cpu_has_bf16(),
+            "threads": args.threads,
+            "torch": torch.__version__,
+            "env": args.env,
+            "frames": args.frames,
+            "rounds": args.rounds,
+        }
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(json.dumps({"setup": setup, "layers": rows}, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    main()
