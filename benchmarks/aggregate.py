@@ -325,13 +325,13 @@ def group_runs(runs: list[Run]) -> tuple[dict[tuple[str, str, str], Group], list
     groups, left_out, seen = {}, [], {}
     for run in sorted(runs, key=lambda r: str(r.folder)):
         if run.problem is not None:
-            left_out.append((str(run.folder), run.problem))
+            left_out.append((shown(run.folder), run.problem))
             continue
         key = (run.env, run.teacher, run.method)
         if (key, run.seed) in seen:  # e.g. the same run copied twice: counting both would weigh it double
             left_out.append(
                 (
-                    str(run.folder),
+                    shown(run.folder),
                     f"duplicate of {seen[key, run.seed]} (same env, teacher, method, seed {run.seed}), not counted",
                 )
             )
@@ -354,6 +354,14 @@ def within(a: Path, b: Path) -> bool:
     """Whether one of the folders ``a`` and ``b`` holds the other (or they are the same)."""
     a, b = a.resolve(), b.resolve()
     return a == b or a in b.parents or b in a.parents
+
+
+def shown(path: Path) -> str:
+    """``path`` relative to the working directory when it is below it (reports name no machine paths)."""
+    try:
+        return str(path.resolve().relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return str(path)
 
 
 def missing_runs(
@@ -390,7 +398,7 @@ def missing_runs(
         rank = {method: index for index, method in enumerate(sort_methods(method for _, _, method, _ in expected))}
         for env, teacher, method, seed in sorted(expected - cells, key=lambda c: (c[0], c[1], rank[c[2]], c[3])):
             where = (
-                str(root / teacher / env / method / f"seed{seed}")
+                shown(root / teacher / env / method / f"seed{seed}")
                 if root
                 else f"env {env}, teacher {teacher}, method {method}, seed {seed}"
             )
@@ -514,7 +522,7 @@ def run_details(run: Run) -> str:
     teacher = run.teacher_return
     passed = run.passed_teacher_at()
     lines = [
-        f"### `{run.folder}`: {run.env}, {run.method}, teacher {run.teacher}, seed {run.seed}, "
+        f"### `{shown(run.folder)}`: {run.env}, {run.method}, teacher {run.teacher}, seed {run.seed}, "
         f"{frames // 1000}k frames",
         "",
     ]
