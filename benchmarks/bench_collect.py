@@ -8,9 +8,9 @@ Each layer adds one piece on top of the previous one and is timed over ``--frame
 
 - ``gymnasium``: ``gymnasium.make(env)`` stepped with NumPy actions: the simulator and its wrappers;
 - ``GymEnv``: TorchRL's ``GymEnv`` through ``step_and_maybe_reset`` (what the collector calls);
-- ``env stack``: ``make_sail_env``, the transforms of the example (time feature, delayed reward, ...);
+- ``env stack``: the example's env (``make_sail_env``: the time feature, the delayed reward, ...);
 - ``+ policy``: the example's exploration policy (actor, tanh, Gaussian noise) before each step;
-- ``Collector``: TorchRL's ``Collector`` over the same env and policy, ``frames_per_batch=1000``.
+- ``Collector``: the example's TorchRL ``Collector`` over the same env and policy, at its batch size.
 
 The differences between consecutive layers are what each one costs per frame.
 """
@@ -29,7 +29,6 @@ import gymnasium as gym
 import numpy as np
 import torch
 from hydra import compose, initialize_config_dir
-from torchrl.collectors import Collector
 from torchrl.envs import ExplorationType, GymEnv, set_exploration_type
 
 from torchrl_sail.runs import cpu_model
@@ -38,7 +37,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "examples"))
 
 from config_schema import register_config_schema  # noqa: E402
-from utils import make_agent, make_env  # noqa: E402
+from utils import make_agent, make_collector, make_env  # noqa: E402
 
 LAYERS = ("gymnasium", "GymEnv", "env stack", "+ policy", "Collector")
 
@@ -50,7 +49,8 @@ def parse_args(argv=None) -> argparse.Namespace:
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--overrides", default="", help="Hydra overrides of the example's config")
-    parser.add_argument("--out", type=Path, default=None, help="JSON file for the table and the setup")
+    parser.add_argument("--label", default="current", help="names this measurement in --out")
+    parser.add_argument("--out", type=Path, default=None, help="JSON file: one record per --label, replaced")
     return parser.parse_args(argv)
 
 
@@ -86,20 +86,22 @@ def time_env(env, frames: int, policy=None) -> float:
     return time.perf_counter() - start
 
 
-def time_collector(env, policy, frames: int) -> float:
-    collector = Collector(env, policy, frames_per_batch=1000, total_frames=frames + 1000, track_traj_ids=False)
+def time_collector(cfg, env, policy, frames: int) -> float:
+    """The example's collector (``make_collector``): ``frames`` after its first batch."""
+    collector = make_collector(cfg, env, policy, frames=0)
     batches = iter(collector)
     next(batches)  # the first batch builds the collector's buffers
-    start = time.perf_counter()
-    for _ in range(frames // 1000):
-        next(batches)
+    collected, start = 0, time.perf_counter()
+    while collected < frames:
+        collected += next(batches).numel()
     elapsed = time.perf_counter() - start
     collector.shutdown()
-    return elapsed
+    return elapsed * frames / collected
 
 
 def measure(args) -> dict[str, list[float]]:
-    cfg = example_config(args.env, args.overrides)
+    overrides = f"collector.init_random_frames=0 {args.overrides}"
+    cfg = example_config(args.env, f"collector.total_frames={2 * args.frames + 10_000} {overrides}")
     env = make_env(cfg, 0)
     _, _, policy = make_agent(cfg, env)
     times = {layer: [] for layer in LAYERS}
@@ -109,7 +111,7 @@ def measure(args) -> dict[str, list[float]]:
             times["GymEnv"].append(time_env(GymEnv(args.env), args.frames))
             times["env stack"].append(time_env(env, args.frames))
             times["+ policy"].append(time_env(env, args.frames, policy))
-            times["Collector"].append(time_collector(env, policy, args.frames))
+            times["Collector"].append(time_collector(cfg, env, policy, args.frames))
     return {layer: [1e3 * t / args.frames for t in ts] for layer, ts in times.items()}
 
 
@@ -144,8 +146,10 @@ def main(argv=None) -> None:
             "frames": args.frames,
             "rounds": args.rounds,
         }
+        records = json.loads(args.out.read_text()) if args.out.exists() else {}
+        records[args.label] = {"setup": setup, "layers": rows}
         args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(json.dumps({"setup": setup, "layers": rows}, indent=1) + "\n")
+        args.out.write_text(json.dumps(records, indent=1) + "\n")
 
 
 if __name__ == "__main__":

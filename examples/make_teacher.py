@@ -20,7 +20,7 @@ from run_utils import seed_everything
 from torchrl.collectors import Collector
 from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.objectives import SoftUpdate, TD3Loss
-from utils import env_kwargs, make_agent, make_replay
+from utils import env_device, env_kwargs, make_agent, make_replay
 
 from torchrl_sail import TRANSITION_KEYS, make_sail_env, save_demonstrations
 
@@ -32,7 +32,7 @@ def make_env(cfg, seed):
         cfg.env.name,
         max_episode_steps=cfg.env.max_episode_steps,
         delayed_reward=False,
-        device=cfg.device,
+        device=env_device(cfg),
         env_kwargs=env_kwargs(cfg),
     )
     env.set_seed(seed)

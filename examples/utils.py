@@ -74,12 +74,17 @@ def env_kwargs(cfg: DictConfig) -> dict:
     return {} if kwargs is None else OmegaConf.to_container(kwargs, resolve=True)
 
 
+def env_device(cfg: DictConfig) -> str | None:
+    """The envs' device: none on the CPU (a device-less env is not moved to the CPU every step)."""
+    return None if torch.device(cfg.device).type == "cpu" else cfg.device
+
+
 def make_env(cfg: DictConfig, seed: int):
     env = make_sail_env(
         cfg.env.name,
         max_episode_steps=cfg.env.max_episode_steps,
         absorbing_state=cfg.algo.absorbing_state,
-        device=cfg.device,
+        device=env_device(cfg),
         normalized_observation_key=normalized_observation_key(cfg),
         env_kwargs=env_kwargs(cfg),
     )
@@ -107,7 +112,7 @@ def make_collector(cfg: DictConfig, env, policy, *, frames: int):
             cfg.env.name,
             max_episode_steps=cfg.env.max_episode_steps,
             absorbing_state=cfg.algo.absorbing_state,
-            device=cfg.device,
+            device=env_device(cfg),
             env_kwargs=env_kwargs(cfg),
         )
     collector = Collector(

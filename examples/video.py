@@ -17,7 +17,7 @@ import numpy as np
 import torch
 from mujoco_gl import GL_HELP
 from torchrl.envs import ExplorationType, set_exploration_type
-from utils import env_kwargs, normalized_observation_key
+from utils import env_device, env_kwargs, normalized_observation_key
 
 from torchrl_sail import make_sail_env
 from torchrl_sail._compat import render_fps
@@ -37,7 +37,7 @@ def make_render_env(cfg, seed: int, size):
         max_episode_steps=cfg.env.max_episode_steps,
         absorbing_state=cfg.algo.absorbing_state,
         render_size=tuple(size),
-        device=cfg.device,
+        device=env_device(cfg),
         normalized_observation_key=normalized_observation_key(cfg),
         env_kwargs=env_kwargs(cfg),
     )
