@@ -17,6 +17,15 @@ no updates) for ``--frames`` frames:
 ``PYTHONPATH`` there, so its own package is imported), e.g. a worktree of an earlier commit;
 ``--label`` tags every record (``before``/``after``) so runs can be told apart in one table.
 
+Two measurements of each trainer, both reported:
+
+- in-process timers (the default): the timed part of one run of ``--frames`` frames, from
+  the example's ``summary.json`` and timers around SB3's loop;
+- ``--whole-process``: each run also with ``2 * --frames`` frames, both timed from process start
+  to exit; ``frames / (T(2 frames) - T(frames))`` counts everything a longer run adds (logging,
+  the Python around the phases, memory growth) and nothing it does once (imports, building,
+  warm-up).
+
 Runs alternate round by round (round, threads, trainer), so peers share the same period.
 Reports the median over rounds of frames/s, ms per gradient step, ms per collected frame and
 peak RSS, and frames/s ratios against SB3 of the same label; each record also holds
@@ -43,6 +52,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 TRAINERS = ("sail", "td3", "sb3")
 METRICS = ("fps", "ms_update", "ms_frame", "peak_mb", "gradient_steps")
+PROCESS_METRIC = "fps_whole_process"
 SB3_MISSING = 'stable-baselines3 is not installed: pip install -e ".[bench]"'
 
 
@@ -58,6 +68,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--sail-overrides", default="", help="extra Hydra overrides for sail and td3")
     parser.add_argument("--example-root", type=Path, default=REPO, help="checkout to run sail and td3 from")
     parser.add_argument("--label", default="", help="stored in every record, e.g. before | after")
+    parser.add_argument(
+        "--whole-process", action="store_true", help="also run 2 x --frames: frames/s from the process times"
+    )
     parser.add_argument("--out", type=Path, default=REPO / "benchmarks" / "results" / "throughput" / "throughput.json")
     parser.add_argument("--worker", choices=["sb3"], help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
@@ -74,7 +87,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 
 # ----------------------------------------------------------------------------- commands
-def example_command(args, trainer: str, threads: int, run_dir: Path) -> list[str]:
+def example_command(args, trainer: str, threads: int, run_dir: Path, frames: int | None = None) -> list[str]:
+    frames = args.frames if frames is None else frames
     cmd = [
         sys.executable,
         str(args.example_root / "examples" / "sail_td3.py"),
@@ -82,7 +96,7 @@ def example_command(args, trainer: str, threads: int, run_dir: Path) -> list[str
         f"seed={args.seed}",
         f"threads={threads}",
         f"collector.init_random_frames={args.warmup}",
-        f"collector.total_frames={args.warmup + args.frames}",
+        f"collector.total_frames={args.warmup + frames}",
         "logger.backends=[csv]",
         "checkpoint.every_frames=0",
         "eval.every_frames=0",
@@ -93,7 +107,7 @@ def example_command(args, trainer: str, threads: int, run_dir: Path) -> list[str
     return cmd + shlex.split(args.sail_overrides)
 
 
-def sb3_command(args, threads: int) -> list[str]:
+def sb3_command(args, threads: int, frames: int | None = None) -> list[str]:
     return [
         sys.executable,
         "benchmarks/throughput.py",
@@ -106,7 +120,7 @@ def sb3_command(args, threads: int) -> list[str]:
         "--warmup",
         str(args.warmup),
         "--frames",
-        str(args.frames),
+        str(args.frames if frames is None else frames),
         "--seed",
         str(args.seed),
     ]
@@ -138,9 +152,15 @@ def phases_ms_per_frame(summary: dict) -> dict:
     return {phase: s / frames * 1e3 for phase, s in (summary.get("time_seconds") or {}).items()} if frames else {}
 
 
-def run_one(args, trainer: str, threads: int) -> dict:
+def run_one(args, trainer: str, threads: int, frames: int | None = None) -> dict:
+    """One process of ``trainer`` for ``frames`` (default ``--frames``) timed frames: its metrics and wall time."""
+    frames = args.frames if frames is None else frames
     run_dir = Path(tempfile.mkdtemp(prefix=f"throughput-{trainer}-"))
-    cmd = sb3_command(args, threads) if trainer == "sb3" else example_command(args, trainer, threads, run_dir)
+    cmd = (
+        sb3_command(args, threads, frames)
+        if trainer == "sb3"
+        else example_command(args, trainer, threads, run_dir, frames)
+    )
     print("$", shlex.join(cmd), flush=True)
     env = {**os.environ, "WANDB_SILENT": "true", "HYDRA_FULL_ERROR": "1"}
     if trainer != "sb3":  # import the package of the checkout the example runs from
@@ -151,9 +171,11 @@ def run_one(args, trainer: str, threads: int) -> dict:
                 f"{args.example_root} has no conf/algo/td3_delayed.yaml: td3 needs a checkout "
                 "with algo=td3_delayed (skipped)"
             )
+        start = time.perf_counter()
         proc = subprocess.run(
             cmd, cwd=REPO if trainer == "sb3" else args.example_root, env=env, capture_output=True, text=True
         )
+        process_seconds = time.perf_counter() - start
         if proc.returncode:
             raise RuntimeError(f"exit {proc.returncode}: {proc.stderr.strip()[-2000:]}")
         if trainer == "sb3":
@@ -161,12 +183,20 @@ def run_one(args, trainer: str, threads: int) -> dict:
         else:
             summary = json.loads((run_dir / "summary.json").read_text())
             record = {**record_from_summary(summary), "phases_ms_per_frame": phases_ms_per_frame(summary)}
+        record["process_seconds"] = process_seconds
     except (RuntimeError, OSError, ValueError, IndexError) as err:
         print(f"  {trainer} failed: {err}", file=sys.stderr)
         record = {"error": str(err)}
     finally:
         shutil.rmtree(run_dir, ignore_errors=True)
-    return {"label": args.label, "trainer": trainer, "threads": threads, "command": shlex.join(cmd), **record}
+    return {
+        "label": args.label,
+        "trainer": trainer,
+        "threads": threads,
+        "frames": frames,
+        "command": shlex.join(cmd),
+        **record,
+    }
 
 
 # ----------------------------------------------------------------------------- SB3 worker
@@ -267,9 +297,11 @@ def aggregate(records: list[dict]) -> list[dict]:
     def key(r: dict) -> tuple:
         return r.get("label", ""), r["trainer"], r["threads"]
 
+    base_frames = min((r.get("frames", 0) for r in records), default=0)
     rows = []
     for label, trainer, threads in dict.fromkeys(map(key, records)):
-        runs = [r for r in records if key(r) == (label, trainer, threads)]
+        group = [r for r in records if key(r) == (label, trainer, threads)]
+        runs = [r for r in group if r.get("frames", base_frames) == base_frames]  # the in-process figures
         phases = [r.get("phases_ms_per_frame") or {} for r in runs]
         rows.append(
             {
@@ -282,13 +314,26 @@ def aggregate(records: list[dict]) -> list[dict]:
                 "phases_ms_per_frame": {
                     p: median([ph.get(p) for ph in phases]) for p in dict.fromkeys(p for ph in phases for p in ph)
                 },
+                PROCESS_METRIC: whole_process_fps(group, base_frames),
             }
         )
-    sb3 = {(row["label"], row["threads"]): row["fps"] for row in rows if row["trainer"] == "sb3"}
-    for row in rows:
-        base = sb3.get((row["label"], row["threads"]))
-        row["fps_vs_sb3"] = row["fps"] / base if row["fps"] is not None and base else None
+    for metric, ratio in (("fps", "fps_vs_sb3"), (PROCESS_METRIC, "fps_whole_process_vs_sb3")):
+        sb3 = {(row["label"], row["threads"]): row[metric] for row in rows if row["trainer"] == "sb3"}
+        for row in rows:
+            base = sb3.get((row["label"], row["threads"]))
+            row[ratio] = row[metric] / base if row[metric] is not None and base else None
     return rows
+
+
+def whole_process_fps(runs: list[dict], frames: int) -> float | None:
+    """``frames / (T(2 frames) - T(frames))``, the process times of the two runs of each round; median over rounds."""
+    times = {}
+    for r in runs:
+        if r.get("process_seconds") is not None and "error" not in r:
+            times.setdefault(r.get("round", 0), {})[r.get("frames")] = r["process_seconds"]
+    rates = [frames / (t[2 * frames] - t[frames]) for t in times.values() if {frames, 2 * frames} <= t.keys()]
+    rates = [rate for rate in rates if rate > 0]
+    return statistics.median(rates) if rates else None
 
 
 def markdown(rows: list[dict]) -> str:
@@ -296,8 +341,9 @@ def markdown(rows: list[dict]) -> str:
         return "-" if value is None else format(value, spec)
 
     lines = [
-        "| label | trainer | threads | frames/s | ms/update | ms/frame | grad steps | peak MB | frames/s vs sb3 |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| label | trainer | threads | frames/s | ms/update | ms/frame | grad steps | peak MB | frames/s vs sb3 "
+        "| whole-process frames/s | whole-process vs sb3 |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         cells = [
@@ -310,6 +356,8 @@ def markdown(rows: list[dict]) -> str:
             fmt(r["gradient_steps"], ".0f"),
             fmt(r["peak_mb"], ".0f"),
             fmt(r["fps_vs_sb3"], ".2f"),
+            fmt(r.get(PROCESS_METRIC), ".1f"),
+            fmt(r.get("fps_whole_process_vs_sb3"), ".2f"),
         ]
         lines.append("| " + " | ".join(map(str, cells)) + " |")
     return "\n".join(lines)
@@ -345,7 +393,8 @@ def main(argv: list[str] | None = None) -> None:
     for rnd in range(args.rounds):
         for threads in args.threads:
             for trainer in args.trainers:
-                records.append({"round": rnd, **run_one(args, trainer, threads)})
+                for frames in (args.frames, 2 * args.frames) if args.whole_process else (args.frames,):
+                    records.append({"round": rnd, **run_one(args, trainer, threads, frames)})
     rows = aggregate(records)
     print(markdown(rows))
     args.out.parent.mkdir(parents=True, exist_ok=True)

@@ -115,6 +115,9 @@ def test_cli_defaults_and_commands(tmp_path):
     assert sail[-2:] == ["teacher.k=5", "optim.lr=3e-4"] and "algo=td3_delayed" not in sail
     assert set(td3) - set(sail) == {"algo=td3_delayed"}
     assert throughput.sb3_command(args, 2)[2:6] == ["--worker", "sb3", "--threads", "2"]
+    # the whole-process method's second run: 2 x --frames after the same warm-up
+    assert "collector.total_frames=12000" in throughput.example_command(args, "sail", 2, tmp_path, frames=10000)
+    assert throughput.sb3_command(args, 2, frames=10000)[-4:-2] == ["--frames", "10000"]
 
 
 def test_missing_sb3_names_the_extra(monkeypatch):
@@ -151,3 +154,43 @@ def test_labels_group_rows_and_example_root_runs_that_checkout(tmp_path):
     assert record["label"] == "before" and "td3_delayed" in record["error"]
     with pytest.raises(SystemExit):
         throughput.parse_args(["--example-root", str(tmp_path / "missing")])
+
+
+def test_whole_process_fps_from_the_difference_of_process_times():
+    # per round: 5000 frames in T(10000) - T(5000) seconds; sail: 100 s and 90 s -> 50 and 55.6 frames/s
+    records = [
+        rec("sail", 1, 40.0, 0, frames=5000, process_seconds=130.0),
+        rec("sail", 1, 41.0, 0, frames=10000, process_seconds=230.0),
+        rec("sail", 1, 42.0, 1, frames=5000, process_seconds=120.0),
+        rec("sail", 1, 43.0, 1, frames=10000, process_seconds=210.0),
+        rec("sb3", 1, 100.0, 0, frames=5000, process_seconds=60.0),
+        rec("sb3", 1, 100.0, 0, frames=10000, process_seconds=110.0),
+    ]
+    rows = {r["trainer"]: r for r in throughput.aggregate(records)}
+    assert rows["sail"]["fps"] == 41.0 and rows["sail"]["runs"] == 2  # in-process: the --frames runs only
+    assert rows["sail"]["fps_whole_process"] == pytest.approx((50.0 + 5000 / 90) / 2)
+    assert rows["sb3"]["fps_whole_process"] == pytest.approx(100.0)
+    assert rows["sail"]["fps_whole_process_vs_sb3"] == pytest.approx((50.0 + 5000 / 90) / 200)
+    table = throughput.markdown(list(rows.values()))
+    assert table.splitlines()[0].endswith("| whole-process frames/s | whole-process vs sb3 |")
+    assert "| 52.8 | 0.53 |" in table
+    # a round without its 2 x frames run, or a failed one, gives no whole-process figure
+    alone = [rec("sail", 1, 40.0, 0, frames=5000, process_seconds=130.0)]
+    assert throughput.aggregate(alone)[0]["fps_whole_process"] is None
+
+
+def test_whole_process_runs_each_trainer_at_frames_and_twice_frames(tmp_path, monkeypatch):
+    calls = []
+
+    def fake_run_one(args, trainer, threads, frames=None):
+        calls.append((trainer, threads, frames))
+        return {"trainer": trainer, "threads": threads, "frames": frames, "fps": 1.0, "process_seconds": frames / 100}
+
+    monkeypatch.setattr(throughput, "run_one", fake_run_one)
+    monkeypatch.setattr(throughput, "machine", lambda: {"load_1min": 0.0})
+    out = tmp_path / "t.json"
+    throughput.main(
+        ["--trainers", "sail", "td3", "--threads", "1", "--rounds", "1", "--whole-process", "--out", str(out)]
+    )
+    assert calls == [("sail", 1, 5000), ("sail", 1, 10000), ("td3", 1, 5000), ("td3", 1, 10000)]
+    assert throughput.parse_args([]).whole_process is False
