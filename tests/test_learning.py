@@ -9,10 +9,6 @@ Checked on seeds 0-3 before committing (same config, 3 deterministic eval episod
 2k frames): the mean of the last three evaluations was 45.3 / 51.3 / 53.0 / 56.7 (final
 46 / 55 / 76 / 81), the threshold C ended at 7 / 9 / 8 / 7, with 33-54 promotions. At 10k
 frames one seed of five was still at 23, so 10k is not enough for a reliable test.
-
-The same test runs with ``optim.precision=bf16`` (the TD3 networks' hidden layers in bfloat16).
-Seed 0 before committing: last three evaluations 76.0 / 51.3 / 46.0, C ended at 8, 31 promotions.
-Without native bfloat16 products (AVX2) it takes about 1.9x the fp32 test's time (227 s vs 122 s).
 """
 
 from __future__ import annotations
@@ -62,14 +58,12 @@ def weak_teacher(path):
     return float(best["next", "reward"].sum())
 
 
-@pytest.mark.parametrize("precision", ["fp32", "bf16"])
-def test_sail_surpasses_weak_teacher(tmp_path, precision):
-    """Also with the TD3 networks' hidden layers in bfloat16 (``optim.precision=bf16``)."""
+def test_sail_surpasses_weak_teacher(tmp_path):
     teacher_return = weak_teacher(tmp_path / "teacher")
     assert teacher_return == 18.0  # seeded: the documented teacher
 
     run_dir = tmp_path / "run"
-    run(run_dir, *BUDGET, f"teacher.path={tmp_path / 'teacher'}", "seed=0", f"optim.precision={precision}")
+    run(run_dir, *BUDGET, f"teacher.path={tmp_path / 'teacher'}", "seed=0")
     summary = json.loads((run_dir / "summary.json").read_text())
 
     assert summary["teacher_return"] == teacher_return
