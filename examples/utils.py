@@ -79,11 +79,13 @@ def env_device(cfg: DictConfig) -> str | None:
     return None if torch.device(cfg.device).type == "cpu" else cfg.device
 
 
-def make_env(cfg: DictConfig, seed: int):
+def make_env(cfg: DictConfig, seed: int, *, render_size=None):
+    """The run's env, seeded; ``render_size=(width, height)`` also renders ``"pixels"`` (videos)."""
     env = make_sail_env(
         cfg.env.name,
         max_episode_steps=cfg.env.max_episode_steps,
         absorbing_state=cfg.algo.absorbing_state,
+        render_size=None if render_size is None else tuple(render_size),
         device=env_device(cfg),
         normalized_observation_key=normalized_observation_key(cfg),
         env_kwargs=env_kwargs(cfg),

@@ -17,9 +17,8 @@ import numpy as np
 import torch
 from mujoco_gl import GL_HELP
 from torchrl.envs import ExplorationType, set_exploration_type
-from utils import env_device, env_kwargs, normalized_observation_key
+from utils import make_env
 
-from torchrl_sail import make_sail_env
 from torchrl_sail._compat import render_fps
 
 
@@ -32,15 +31,7 @@ def make_render_env(cfg, seed: int, size):
     Raises:
         RuntimeError: when MuJoCo cannot render here, naming ``MUJOCO_GL`` and the packages to install.
     """
-    env = make_sail_env(
-        cfg.env.name,
-        max_episode_steps=cfg.env.max_episode_steps,
-        absorbing_state=cfg.algo.absorbing_state,
-        render_size=tuple(size),
-        device=env_device(cfg),
-        normalized_observation_key=normalized_observation_key(cfg),
-        env_kwargs=env_kwargs(cfg),
-    )
+    env = make_env(cfg, seed, render_size=size)
     try:
         env.reset()  # renders the first frame: fails here without a usable GL backend
     except Exception as err:  # EGL/OSMesa/GLFW failures surface as many exception types

@@ -444,10 +444,11 @@ class TD3Update:
             ``{"loss_qvalue", "q_mean"}`` and, on actor steps, ``"loss_actor"``: detached
             scalar tensors (no host synchronisation).
         """
-        metrics = self.critic_step(batch)
+        self._ensure_bound()  # once per step; the three parts below trust it
+        metrics = self._critic_step(batch)
         if update_actor:
-            metrics.update(self.actor_step(batch))
-            self.update_targets()
+            metrics.update(self._actor_step(batch))
+            self._update_targets()
         return metrics
 
     def critic_step(self, batch: TensorDictBase) -> dict[str, torch.Tensor]:
@@ -460,6 +461,9 @@ class TD3Update:
             batch (TensorDictBase): a ``[B]`` batch of transitions with the loss's keys.
         """
         self._ensure_bound()
+        return self._critic_step(batch)
+
+    def _critic_step(self, batch: TensorDictBase) -> dict[str, torch.Tensor]:
         loss = self.loss
         nstep = self.nstep_key is not None
         if self.implementation == "loss":
@@ -538,6 +542,9 @@ class TD3Update:
             batch (TensorDictBase): a ``[B]`` batch of transitions with the loss's keys.
         """
         self._ensure_bound()
+        return self._actor_step(batch)
+
+    def _actor_step(self, batch: TensorDictBase) -> dict[str, torch.Tensor]:
         loss = self.loss
         with self._autocast():
             if self.implementation == "loss":
@@ -555,10 +562,13 @@ class TD3Update:
 
     def update_targets(self) -> None:
         """The Polyak step of the target networks (``target_updater.step()``)."""
+        self._ensure_bound()
+        self._update_targets()
+
+    def _update_targets(self) -> None:
         if self.implementation == "loss":
             self.target_updater.step()
         else:
-            self._ensure_bound()
             with torch.no_grad():
                 torch._foreach_lerp_(self._polyak_targets, self._polyak_sources, 1.0 - self.target_updater.eps)
 
