@@ -2,7 +2,7 @@
 
     python benchmarks/throughput.py [--env Hopper-v4] [--warmup 2000] [--frames 5000] [--rounds 2] \
         [--threads 1 2] [--trainers sail td3 sb3] [--sail-overrides "a=b c=d"] \
-        [--example-root ../old --label before]
+        [--example-root ../old --label before] [--device cuda]
 
 Trainers, each in its own process, timed from the end of the warm-up (uniform random actions,
 no updates) for ``--frames`` frames:
@@ -16,6 +16,9 @@ no updates) for ``--frames`` frames:
 ``--example-root`` runs ``sail`` and ``td3`` from another checkout (cwd, script and
 ``PYTHONPATH`` there, so its own package is imported), e.g. a worktree of an earlier commit;
 ``--label`` tags every record (``before``/``after``) so runs can be told apart in one table.
+``--device cuda`` runs every trainer's networks and updates on the GPU (``device=cuda`` for the
+example, ``device="cuda"`` for SB3); add ``--sail-overrides optim.cudagraphs=true`` for the
+example's CUDA-graph step.
 
 Two measurements of each trainer, both reported:
 
@@ -68,6 +71,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--sail-overrides", default="", help="extra Hydra overrides for sail and td3")
     parser.add_argument("--example-root", type=Path, default=REPO, help="checkout to run sail and td3 from")
     parser.add_argument("--label", default="", help="stored in every record, e.g. before | after")
+    parser.add_argument("--device", default="cpu", help="every trainer's torch device: cpu | cuda")
     parser.add_argument(
         "--whole-process", action="store_true", help="also run 2 x --frames: frames/s from the process times"
     )
@@ -101,6 +105,7 @@ def example_command(args, trainer: str, threads: int, run_dir: Path, frames: int
         "checkpoint.every_frames=0",
         "eval.every_frames=0",
         f"hydra.run.dir={run_dir}",
+        f"device={args.device}",
     ]
     if trainer == "td3":
         cmd.append("algo=td3_delayed")
@@ -123,6 +128,8 @@ def sb3_command(args, threads: int, frames: int | None = None) -> list[str]:
         str(args.frames if frames is None else frames),
         "--seed",
         str(args.seed),
+        "--device",
+        args.device,
     ]
 
 
@@ -245,7 +252,7 @@ def sb3_worker(args) -> dict:
         target_noise_clip=0.5,
         policy_kwargs=dict(net_arch=[400, 300]),
         seed=args.seed,
-        device="cpu",
+        device=args.device,
     )
     clock = {"start": None, "train": 0.0, "collect": 0.0, "steps": 0}
 
@@ -363,7 +370,28 @@ def markdown(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def machine() -> dict:
+def cpu() -> dict:
+    """The CPU's model and the flags that decide its matrix-product speed (Linux /proc/cpuinfo)."""
+    try:
+        text = Path("/proc/cpuinfo").read_text()
+    except OSError:
+        return {}
+    fields = dict(line.split(":", 1) for line in text.splitlines() if ":" in line)
+    fields = {key.strip(): value.strip() for key, value in fields.items()}
+    flags = set(fields.get("flags", "").split())
+    wanted = ("avx2", "avx512f", "avx512_bf16", "amx_bf16", "amx_tile")
+    return {"cpu_model": fields.get("model name", "unknown"), "cpu_flags": [f for f in wanted if f in flags]}
+
+
+def gpu(device: str) -> dict:
+    if not device.startswith("cuda"):
+        return {}
+    import torch
+
+    return {"gpu": torch.cuda.get_device_name(torch.device(device))}
+
+
+def machine(device: str = "cpu") -> dict:
     def version(name: str) -> str:
         try:
             return importlib.metadata.version(name)
@@ -371,6 +399,8 @@ def machine() -> dict:
             return "not installed"
 
     return {
+        **cpu(),
+        **gpu(device),
         "cpu_count": os.cpu_count(),
         "load_1min": os.getloadavg()[0],
         "python": sys.version.split()[0],
@@ -385,7 +415,7 @@ def main(argv: list[str] | None = None) -> None:
         return
     if "sb3" in args.trainers:
         require_sb3()
-    info = machine()
+    info = machine(args.device)
     print(", ".join(f"{k} {v}" for k, v in info.items()))
     if info["load_1min"] > 0.5:
         print(f"WARNING: 1-min load average {info['load_1min']:.2f} > 0.5: something else is running", file=sys.stderr)

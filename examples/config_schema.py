@@ -239,6 +239,9 @@ class OptimConfig:
     # fp32 | bf16: autocast the TD3 network evaluations to bfloat16 (opt-in; fast on CPUs with
     # AMX and on CUDA). Parameters, optimizer states and losses stay float32.
     precision: Precision = Precision.fp32
+    # Replay the fused TD3 step as CUDA graphs (device=cuda; TensorDict's CudaGraphModule, as
+    # TorchRL's sota scripts): the step's kernels launched as one graph, the Adam steps capturable.
+    cudagraphs: bool = False
     # The actor's extras (all off by default; algo=dac_published sets them as Kostrikov et al.'s DAC):
     actor_updates_after: int = 0  # the actor is first updated at this gradient step (then every policy_delay-th)
     actor_max_grad_norm: Optional[float] = None  # clip the actor's gradients to this global norm
@@ -511,6 +514,21 @@ def check_config(cfg: DictConfig) -> None:
             or (o.implementation == "fused" and cfg.algo.learner == "td3" and not masks_absorbing_actions(cfg)),
             "bf16 is TD3's fused step only: optim.implementation=fused, algo.learner=td3, and no bootstrapped "
             "absorbing states (DAC's masked actor runs the loss's own step)",
+        ),
+        (
+            "optim.cudagraphs",
+            o.cudagraphs,
+            not o.cudagraphs
+            or (
+                str(cfg.device).startswith("cuda")
+                and o.implementation == "fused"
+                and cfg.algo.learner == "td3"
+                and not masks_absorbing_actions(cfg)
+                and o.actor_lr_decay is None
+            ),
+            "CUDA graphs replay TD3's fused step on a GPU: device=cuda, optim.implementation=fused, "
+            "algo.learner=td3, no bootstrapped absorbing states and no optim.actor_lr_decay (a new learning "
+            "rate would capture the graph again)",
         ),
         (
             "algo.reward.clip",

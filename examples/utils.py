@@ -386,13 +386,15 @@ def make_losses(cfg: DictConfig, actor, critic, discriminator, action_spec):
 def make_optimizers(cfg: DictConfig, loss, discriminator, rnd: RNDReward | None = None) -> dict:
     # fused Adam: one kernel for all parameters of a network (CPU and CUDA).
     adam = partial(torch.optim.Adam, fused=True)
+    # a CUDA graph cannot read Adam's step count on the host
+    td3_adam = partial(adam, capturable=cfg.optim.cudagraphs)
     # DDPGfD's lambda_2 (algo.l2_coef): Adam's coupled weight decay adds l2_coef * theta to the
     # gradient, i.e. l2_coef / 2 * ||theta||^2 in the actor's and the critic's losses (0: none)
     l2 = cfg.algo.l2_coef
     optimizers = {
         # convert_to_functional re-samples and stacks the twin Q params: optimise the loss's copy.
-        "critic": adam(loss.qvalue_network_params.flatten_keys().values(), lr=cfg.optim.lr, weight_decay=l2),
-        "actor": adam(loss.actor_network_params.flatten_keys().values(), lr=cfg.optim.lr, weight_decay=l2),
+        "critic": td3_adam(loss.qvalue_network_params.flatten_keys().values(), lr=cfg.optim.lr, weight_decay=l2),
+        "actor": td3_adam(loss.actor_network_params.flatten_keys().values(), lr=cfg.optim.lr, weight_decay=l2),
         "discriminator": adam(discriminator.parameters(), lr=cfg.optim.discriminator.lr),
     }
     if rnd is not None:
@@ -419,6 +421,7 @@ def make_update(cfg: DictConfig, loss, optimizers: dict, target_updater):
             implementation=implementation,
             precision=cfg.optim.precision,
             actor_max_grad_norm=cfg.optim.actor_max_grad_norm,
+            cudagraphs=cfg.optim.cudagraphs,
             **nstep_kwargs,
         )
     steps = [optimizers[name] for name in ("critic", "actor", "alpha")]

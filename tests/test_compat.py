@@ -75,6 +75,12 @@ def test_mlp_params_paths_and_tanh_bounds():
     assert critic_mlp["0", "weight"].shape == (2, 8, 5)  # the twin critics, stacked
     low, high = _compat.tanh_bounds(loss.actor_network.module[1])
     assert torch.equal(low, spec.space.low) and torch.equal(high, spec.space.high)
+    # the loss's own copy moves with loss.to(...); the module's buffers stay behind
+    loss.to(torch.float64)
+    tanh_params = loss.actor_network_params[_compat.ACTOR_TANH_PATH]
+    low, high = _compat.tanh_bounds(loss.actor_network.module[1], tanh_params)
+    assert low.dtype == high.dtype == torch.float64 and torch.equal(high, spec.space.high.double())
+    assert _compat.tanh_bounds(loss.actor_network.module[1])[0].dtype == torch.float32
 
 
 def test_env_privates():

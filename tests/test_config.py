@@ -149,6 +149,7 @@ def test_optional_blocks_are_typed_when_set():
         (["eval.video_every_frames=-1"], "eval.video_every_frames=-1: must be >= 0 (0 disables)"),
         (["algo=dac", "algo.adaptive=true"], "absorbing states need a fixed teacher"),
         (["algo=sail_sac", "optim.precision=bf16"], "bf16 is TD3's fused step only"),
+        (["optim.cudagraphs=true"], "config optim.cudagraphs=True: CUDA graphs replay TD3's fused step on a GPU"),
         (["algo.learner=ppo"], "algo.learner=ppo needs the PPO settings"),
         (["algo=gail", "algo.reward.source=env"], "the PPO generator (gail, pofd) learns from D's reward"),
         (["algo=pofd_td3", "algo.reward.coef_decay=0.5"], "and 1 unless algo.learner=ppo"),

@@ -39,12 +39,12 @@ def make_loss(spec, *, cls=SAILLoss, device="cpu", activation=nn.ReLU, num_cells
         in_keys=["action", "observation"],
     )
     kwargs.setdefault("loss_function", "l2")
-    loss = cls(actor, critic, action_spec=spec, **kwargs).to(device)
+    loss = cls(actor, critic, action_spec=spec, **kwargs)
     loss.make_value_estimator(gamma=0.9)
-    return loss
+    return loss.to(device)  # the estimator's gamma too
 
 
-def make_update(loss, implementation, *, fused_adam=False, **kwargs):
+def make_update(loss, implementation, *, fused_adam=False, capturable=False, **kwargs):
     # Targets start as copies of the online nets; perturb them so that mixing up online and
     # target parameters cannot go unnoticed. SoftUpdate copies online -> target when built.
     updater = SoftUpdate(loss, tau=0.05)
@@ -56,9 +56,11 @@ def make_update(loss, implementation, *, fused_adam=False, **kwargs):
     return TD3Update(
         loss,
         critic_optimizer=torch.optim.Adam(
-            loss.qvalue_network_params.flatten_keys().values(), lr=1e-2, fused=fused_adam
+            loss.qvalue_network_params.flatten_keys().values(), lr=1e-2, fused=fused_adam, capturable=capturable
         ),
-        actor_optimizer=torch.optim.Adam(loss.actor_network_params.flatten_keys().values(), lr=1e-2, fused=fused_adam),
+        actor_optimizer=torch.optim.Adam(
+            loss.actor_network_params.flatten_keys().values(), lr=1e-2, fused=fused_adam, capturable=capturable
+        ),
         target_updater=updater,
         implementation=implementation,
         **kwargs,
@@ -511,6 +513,10 @@ class TestTD3Update:
         renamed.value_estimator.set_keys(value="other_value")
         with pytest.raises(ValueError, match="reads the next value from 'other_value'"):
             make_update(renamed, "fused")
+        with pytest.raises(ValueError, match="needs the loss on a CUDA device, got cpu"):
+            make_update(make_loss(UNIT), "fused", cudagraphs=True)
+        with pytest.raises(ValueError, match="cudagraphs=True replays the fused step"):
+            make_update(make_loss(UNIT), "loss", cudagraphs=True)
         for kwargs, match in [
             ({"nstep_key": "next"}, "nstep_key='next' is the 1-step"),
             ({"nstep_key": "next_n", "nstep_weight": 0.0}, "lambda_1\\) must be a finite number > 0"),
@@ -555,3 +561,58 @@ class _HostReads(TorchFunctionMode):
 if __name__ == "__main__":
     args, unknown = argparse.ArgumentParser().parse_known_args()
     pytest.main([__file__, "--capture", "no", "--exitfirst"] + unknown)
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="CUDA graphs need a CUDA device")
+class TestCudaGraphs:
+    """The fused step replayed as CUDA graphs equals the same step run eagerly."""
+
+    def run(self, cudagraphs, *, steps=10, precision="fp32", change=None, loss_kwargs=None):
+        torch.manual_seed(0)
+        loss = make_loss(UNIT, device="cuda", **(loss_kwargs or {}))
+        update = make_update(
+            loss, "fused", capturable=True, precision=precision, cudagraphs=cudagraphs, cudagraph_warmup=2
+        )
+        torch.manual_seed(1)  # the policy-smoothing noise, drawn inside the graph too
+        metrics = []
+        for i in range(steps):
+            if change is not None and i == steps // 2:
+                change(update)
+            metrics.append(update(make_batch(UNIT, seed=i, device="cuda"), update_actor=i % 2 == 0))
+        return update, metrics, loss.state_dict()
+
+    def assert_same(self, eager, graphed, atol=1e-6):
+        for a, b in zip(eager[1], graphed[1], strict=True):
+            assert a.keys() == b.keys()
+            for key in a:
+                torch.testing.assert_close(b[key], a[key], atol=atol, rtol=1e-5, msg=key)
+        for key in eager[2]:
+            torch.testing.assert_close(graphed[2][key], eager[2][key], atol=atol, rtol=1e-5, msg=key)
+
+    @pytest.mark.parametrize("precision", ["fp32", "bf16"])
+    def test_graphed_equals_eager(self, precision):
+        graphed = self.run(True, precision=precision)
+        # two graphs (critic steps, and critic + actor + target steps), captured and replayed
+        assert sorted(graphed[0]._graphs) == [False, True]
+        assert all(hasattr(graph, "graph") for graph in graphed[0]._graphs.values())
+        self.assert_same(self.run(False, precision=precision), graphed)
+
+    def test_graphed_weights_mixing_follows_alpha(self):
+        # alpha is a buffer the graph reads: scheduling it in place reaches the replays
+        def schedule(update):
+            update.loss.alpha.fill_(0.8)
+
+        kwargs = {"loss_kwargs": {"mixing": "weights", "alpha": 0.3}, "change": schedule}
+        self.assert_same(self.run(False, **kwargs), self.run(True, **kwargs))
+
+    def test_recaptured_after_a_new_learning_rate(self):
+        # a graph holds the lr it was captured with: a new one is captured again, not ignored
+        def decay(update):
+            for group in update.actor_optimizer.param_groups:
+                group["lr"] = 1e-3
+
+        self.assert_same(self.run(False, change=decay), self.run(True, change=decay))
+
+    def test_refuses_a_non_capturable_optimizer(self):
+        with pytest.raises(ValueError, match="critic_optimizer built with capturable=True"):
+            make_update(make_loss(UNIT, device="cuda"), "fused", cudagraphs=True)

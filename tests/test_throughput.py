@@ -117,7 +117,12 @@ def test_cli_defaults_and_commands(tmp_path):
     assert throughput.sb3_command(args, 2)[2:6] == ["--worker", "sb3", "--threads", "2"]
     # the whole-process method's second run: 2 x --frames after the same warm-up
     assert "collector.total_frames=12000" in throughput.example_command(args, "sail", 2, tmp_path, frames=10000)
-    assert throughput.sb3_command(args, 2, frames=10000)[-4:-2] == ["--frames", "10000"]
+    sb3 = throughput.sb3_command(args, 2, frames=10000)
+    assert sb3[sb3.index("--frames") + 1] == "10000" and sb3[-2:] == ["--device", "cpu"]
+    assert "device=cpu" in sail
+    cuda = throughput.parse_args(["--device", "cuda"])
+    assert throughput.sb3_command(cuda, 1)[-2:] == ["--device", "cuda"]
+    assert throughput.example_command(cuda, "sail", 1, tmp_path)[-1] == "device=cuda"
 
 
 def test_missing_sb3_names_the_extra(monkeypatch):
@@ -187,7 +192,7 @@ def test_whole_process_runs_each_trainer_at_frames_and_twice_frames(tmp_path, mo
         return {"trainer": trainer, "threads": threads, "frames": frames, "fps": 1.0, "process_seconds": frames / 100}
 
     monkeypatch.setattr(throughput, "run_one", fake_run_one)
-    monkeypatch.setattr(throughput, "machine", lambda: {"load_1min": 0.0})
+    monkeypatch.setattr(throughput, "machine", lambda device: {"load_1min": 0.0})
     out = tmp_path / "t.json"
     throughput.main(
         ["--trainers", "sail", "td3", "--threads", "1", "--rounds", "1", "--whole-process", "--out", str(out)]

@@ -40,6 +40,7 @@ from torchrl.envs.transforms.utils import _get_reset
 
 __all__ = [
     "ACTOR_MLP_PATH",
+    "ACTOR_TANH_PATH",
     "CRITIC_MLP_PATH",
     "DropoutLayer",
     "SUBCLASS_HOOKS",
@@ -127,6 +128,8 @@ ACTOR_MLP_PATH = ("module", "0", "module")
 #: Where the MLP of a critic ``TensorDictModule(MLP)`` (e.g. ``ValueOperator``) sits in
 #: ``TD3Loss.qvalue_network_params`` (stacked over the ``num_qvalue_nets`` critics).
 CRITIC_MLP_PATH = ("module",)
+#: Where that actor's ``TanhModule`` buffers sit in ``TD3Loss.actor_network_params``.
+ACTOR_TANH_PATH = ("module", "1")
 
 
 def mlp_params(params: TensorDictBase, path: tuple[str, ...]) -> TensorDictBase:
@@ -139,13 +142,17 @@ def mlp_params(params: TensorDictBase, path: tuple[str, ...]) -> TensorDictBase:
     return params[path]
 
 
-def tanh_bounds(tanh) -> tuple[torch.Tensor, torch.Tensor]:
+def tanh_bounds(tanh, params: TensorDictBase | None = None) -> tuple[torch.Tensor, torch.Tensor]:
     """The ``(low, high)`` action bounds a ``TanhModule`` maps onto, for its single out_key.
 
     ``TanhModule`` registers them as buffers named ``<out_key>_low`` / ``<out_key>_high`` (a
-    nested out_key joined with ``"_"``).
+    nested out_key joined with ``"_"``). With ``params`` (a loss's functional copy of the
+    module's entries, ``actor_network_params[ACTOR_TANH_PATH]``), the copy's: a loss's
+    ``.to(device or dtype)`` moves that copy, not the module's own buffers.
     """
     key = tanh.out_keys[0] if isinstance(tanh.out_keys[0], str) else "_".join(tanh.out_keys[0])
+    if params is not None:
+        return params[f"{key}_low"], params[f"{key}_high"]
     return getattr(tanh, f"{key}_low"), getattr(tanh, f"{key}_high")
 
 

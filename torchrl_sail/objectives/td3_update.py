@@ -16,12 +16,13 @@ transitions (``steps_to_next_obs``) and DDPGfD's two-loss critic step (``nstep_k
 from __future__ import annotations
 
 import math
+from functools import partial
 from typing import Literal
 
 import torch
 import torch.nn.functional as F
 from tensordict import TensorDictBase, unravel_key
-from tensordict.nn import TensorDictModule, TensorDictSequential
+from tensordict.nn import CudaGraphModule, TensorDictModule, TensorDictSequential
 from tensordict.utils import NestedKey
 from torch import nn
 from torchrl.modules import TanhModule
@@ -31,6 +32,7 @@ from torchrl.objectives.value import TD0Estimator
 
 from torchrl_sail._compat import (
     ACTOR_MLP_PATH,
+    ACTOR_TANH_PATH,
     CRITIC_MLP_PATH,
     DropoutLayer,
     mlp_params,
@@ -195,11 +197,23 @@ class TD3Update:
         actor_max_grad_norm (float, optional): clip the actor's gradients to this global
             norm before its step (``torch.nn.utils.clip_grad_norm_``, no host sync), as
             Kostrikov et al.'s DAC does at 40. Defaults to ``None`` (no clipping).
+        cudagraphs (bool, optional): replay the fused step as CUDA graphs (TensorDict's
+            :class:`~tensordict.nn.CudaGraphModule`, as TorchRL's sota scripts use it): one graph
+            for critic steps and one for critic + actor + target steps, each captured after
+            ``cudagraph_warmup`` eager steps (every call is one step, warm-up and capture
+            included). Needs the loss on a CUDA device, ``implementation="fused"`` and both
+            optimizers built with ``capturable=True``. A graph replays the step with the
+            values it was captured with, so the graphs are captured again whenever the binding
+            or a value the step reads as a Python number changes (the optimizers' param groups,
+            e.g. a new learning rate; ``policy_noise``, ``noise_clip``, ``actor_max_grad_norm``).
+            Defaults to ``False``.
+        cudagraph_warmup (int, optional): eager steps before a graph is captured (the
+            optimizers' states are created there). Defaults to ``3``.
 
     Examples:
         >>> import torch
         >>> from tensordict import TensorDict
-        >>> from tensordict.nn import TensorDictModule, TensorDictSequential
+        >>> from tensordict.nn import CudaGraphModule, TensorDictModule, TensorDictSequential
         >>> from torchrl.data import Bounded
         >>> from torchrl.modules import MLP, TanhModule, ValueOperator
         >>> from torchrl.objectives import SoftUpdate
@@ -251,6 +265,8 @@ class TD3Update:
         nstep_key: NestedKey | None = None,
         nstep_weight: float = 1.0,
         actor_max_grad_norm: float | None = None,
+        cudagraphs: bool = False,
+        cudagraph_warmup: int = 3,
     ) -> None:
         if implementation not in ("fused", "loss"):
             raise ValueError(f"implementation must be 'fused' or 'loss', got {implementation!r}.")
@@ -278,6 +294,23 @@ class TD3Update:
         self.implementation = implementation
         self.precision = precision
         self._device_type = loss.max_action.device.type
+        self.cudagraphs = cudagraphs
+        if cudagraphs:
+            if implementation != "fused":
+                raise ValueError("cudagraphs=True replays the fused step: use implementation='fused'.")
+            if self._device_type != "cuda":
+                raise ValueError(f"cudagraphs=True needs the loss on a CUDA device, got {loss.max_action.device}.")
+            for name, optimizer in (("critic_optimizer", critic_optimizer), ("actor_optimizer", actor_optimizer)):
+                if not all(group.get("capturable", False) for group in optimizer.param_groups):
+                    raise ValueError(
+                        f"cudagraphs=True needs {name} built with capturable=True (e.g. "
+                        "torch.optim.Adam(params, capturable=True)): a graph cannot read its step count on the host."
+                    )
+            if not (isinstance(cudagraph_warmup, int) and cudagraph_warmup >= 1):
+                raise ValueError(f"cudagraph_warmup must be an int >= 1, got {cudagraph_warmup!r}.")
+        self.cudagraph_warmup = cudagraph_warmup
+        self._graphs: dict[bool, CudaGraphModule] = {}
+        self._graphed_values = None
         self._binding = None
         if implementation == "fused":
             self._bind()
@@ -353,7 +386,7 @@ class TD3Update:
         self._actor_in_keys = list(body.in_keys)
         self._critic_in_keys = list(critic.in_keys)
         self._tanh = tanh
-        self._tanh_bounds = tanh_bounds(tanh)
+        self._tanh_bounds = self._loss_tanh_bounds()
         self._actor = _mlp_program(body.module, mlp_params(loss.actor_network_params, ACTOR_MLP_PATH), "actor")
         self._target_actor = _mlp_program(
             body.module, mlp_params(loss.target_actor_network_params, ACTOR_MLP_PATH), "actor"
@@ -375,6 +408,7 @@ class TD3Update:
         ]
         self._device_type = self._bound_tensors[0].device.type
         self._binding = self._binding_state()
+        self._graphs.clear()  # captured on the tensors bound before
 
     def _binding_state(self) -> tuple:
         """What the bound views depend on, cheap to read before every step (a few microseconds).
@@ -388,7 +422,7 @@ class TD3Update:
         estimator = loss.value_estimator
         return (
             tuple(tensor.data_ptr() for tensor in self._bound_tensors),
-            tuple(id(bound) for bound in tanh_bounds(self._tanh)),
+            tuple(bound.data_ptr() for bound in self._loss_tanh_bounds()),
             id(estimator),
             tuple(vars(estimator.tensor_keys).values()),
             tuple(vars(loss.tensor_keys).values()),
@@ -396,10 +430,42 @@ class TD3Update:
             id(loss.qvalue_network),
         )
 
+    def _loss_tanh_bounds(self) -> tuple[torch.Tensor, torch.Tensor]:
+        # the loss's copy, where TD3Loss reads them (it swaps its params into the actor), on the loss's device
+        return tanh_bounds(self._tanh, self.loss.actor_network_params[ACTOR_TANH_PATH])
+
     def _ensure_bound(self) -> None:
         """Binds again (checking the loss again) when what the fused step bound has moved."""
         if self.implementation == "fused" and self._binding_state() != self._binding:
             self._bind()
+
+    def _graphed(self) -> tuple:
+        """The values a captured step holds as constants: Python numbers it reads, tensors by identity."""
+        loss = self.loss
+
+        def constant(value):
+            return ("tensor", id(value)) if isinstance(value, torch.Tensor) else value
+
+        groups = tuple(
+            (key, constant(value))
+            for optimizer in (self.critic_optimizer, self.actor_optimizer)
+            for group in optimizer.param_groups
+            for key, value in group.items()
+            if key != "params"
+        )
+        values = (loss.policy_noise, loss.noise_clip, loss.value_estimator.gamma, self.target_updater.eps)
+        return (*map(constant, values), self.actor_max_grad_norm, self.nstep_weight, groups)
+
+    def _graph(self, update_actor: bool) -> CudaGraphModule:
+        graphed = self._graphed()
+        if graphed != self._graphed_values:
+            self._graphs.clear()
+            self._graphed_values = graphed
+        graph = self._graphs.get(update_actor)
+        if graph is None:
+            graph = CudaGraphModule(partial(self._step, update_actor=update_actor), warmup=self.cudagraph_warmup)
+            self._graphs[update_actor] = graph
+        return graph
 
     def _autocast(self):
         dtype = _PRECISIONS[self.precision]
@@ -445,6 +511,11 @@ class TD3Update:
             scalar tensors (no host synchronisation).
         """
         self._ensure_bound()  # once per step; the three parts below trust it
+        if self.cudagraphs:
+            return self._graph(update_actor)(batch)
+        return self._step(batch, update_actor)
+
+    def _step(self, batch: TensorDictBase, update_actor: bool) -> dict[str, torch.Tensor]:
         metrics = self._critic_step(batch)
         if update_actor:
             metrics.update(self._actor_step(batch))
@@ -576,5 +647,5 @@ class TD3Update:
         nstep = "" if self.nstep_key is None else f", nstep_key={self.nstep_key!r}, nstep_weight={self.nstep_weight}"
         return (
             f"{type(self).__name__}(loss={type(self.loss).__name__}, implementation={self.implementation!r}, "
-            f"precision={self.precision!r}{nstep})"
+            f"precision={self.precision!r}{nstep}, cudagraphs={self.cudagraphs})"
         )
