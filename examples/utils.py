@@ -44,6 +44,7 @@ from torchrl_sail import (
     NStepTransform,
     RNDReward,
     SAILLoss,
+    TD3ExplorationPolicy,
     TD3Update,
     TeacherReplayBuffer,
     TopKTrajectoryWriter,
@@ -281,13 +282,14 @@ def make_agent(cfg: DictConfig, env):
         # DAC: pi(s_a) = 0, the action the absorbing transitions store (only read where s_a is bootstrapped)
         *([AbsorbingStateTransform().action_mask()] if masks_absorbing_actions(cfg) else []),
     )
-    modules = [actor]
+    noise = None
     if cfg.env.exploration_noise > 0:
         # Gaussian noise in RANDOM exploration mode only; projected onto the action bounds.
-        modules.append(
-            AdditiveGaussianModule(spec=action_spec, sigma_init=1.0, sigma_end=1.0, std=cfg.env.exploration_noise)
-        )
-    return actor, critic, TensorDictSequential(*modules)
+        noise = AdditiveGaussianModule(spec=action_spec, sigma_init=1.0, sigma_end=1.0, std=cfg.env.exploration_noise)
+    if masks_absorbing_actions(cfg):  # DAC's masked actor: TorchRL's sequence
+        return actor, critic, TensorDictSequential(actor, *([noise] if noise is not None else []))
+    # the same action as TensorDictSequential(actor, noise), one tensordict read and write per env step
+    return actor, critic, TD3ExplorationPolicy(actor, noise)
 
 
 def make_discriminator(cfg: DictConfig, env) -> Discriminator:

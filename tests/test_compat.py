@@ -112,3 +112,12 @@ def test_multi_step():
 
 def test_dropout_layer():
     assert isinstance(nn.Dropout(0.1), _compat.DropoutLayer) and not isinstance(nn.ReLU(), _compat.DropoutLayer)
+
+
+@pytest.mark.parametrize("clamp", [False, True])
+def test_tanh_map_is_tanh_modules_map(clamp):
+    spec = Bounded(torch.tensor([-2.0, 0.0]), torch.tensor([0.5, 3.0]), (2,))
+    tanh = TanhModule(["param"], ["action"], spec=spec, clamp=clamp)
+    param = 4 * torch.randn(16, 2)
+    expected = tanh(TensorDict({"param": param}, [16]))["action"]
+    assert torch.equal(_compat.tanh_map(tanh, param, *_compat.tanh_bounds(tanh)), expected)

@@ -35,7 +35,7 @@ from torchrl_sail.envs import (
     nstep_view,
     observation_normalizer,
 )
-from torchrl_sail.modules import Discriminator, DiscriminatorNet, RunningObsNorm
+from torchrl_sail.modules import Discriminator, DiscriminatorNet, RunningObsNorm, TD3ExplorationPolicy
 from torchrl_sail.objectives import AlphaScheduler, DiscriminatorLoss, SAILLoss, TD3Update
 
 __version__ = "0.1.0.dev0"
@@ -57,6 +57,7 @@ __all__ = [
     "RNDReward",
     "RunningObsNorm",
     "SAILLoss",
+    "TD3ExplorationPolicy",
     "TD3Update",
     "TRANSITION_KEYS",
     "TeacherReplayBuffer",

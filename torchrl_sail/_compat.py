@@ -16,7 +16,8 @@ Reads of TorchRL internals (functions below):
 - ``LossModule._reduce_loss`` and ``LossModule._maybe_get_priority_weight`` (:func:`reduce_loss`);
 - the parameter layout of ``TD3Loss``'s functional copies of SAIL's actor and critic
   (:data:`ACTOR_MLP_PATH`, :data:`CRITIC_MLP_PATH`, :func:`mlp_params`);
-- ``TanhModule``'s bound buffers ``<out_key>_low`` / ``<out_key>_high`` (:func:`tanh_bounds`);
+- ``TanhModule``'s bound buffers ``<out_key>_low`` / ``<out_key>_high`` (:func:`tanh_bounds`) and
+  its ``clamp`` / ``non_trivial`` flags (:func:`tanh_map`);
 - ``EnvBase._filtered_reset_keys`` (:func:`filtered_reset_keys`);
 - ``torchrl.envs.transforms.utils._get_reset`` (:func:`reset_mask`);
 - ``torchrl.data.postprocs.postprocs._multi_step_func`` (:func:`multi_step`);
@@ -53,6 +54,7 @@ __all__ = [
     "reset_mask",
     "soft_update_pairs",
     "tanh_bounds",
+    "tanh_map",
     "timeit",
     "timeit_totals",
 ]
@@ -154,6 +156,18 @@ def tanh_bounds(tanh, params: TensorDictBase | None = None) -> tuple[torch.Tenso
     if params is not None:
         return params[f"{key}_low"], params[f"{key}_high"]
     return getattr(tanh, f"{key}_low"), getattr(tanh, f"{key}_high")
+
+
+def tanh_map(tanh, feature: torch.Tensor, low: torch.Tensor, high: torch.Tensor) -> torch.Tensor:
+    """``TanhModule.forward``'s map on a tensor (the module maps tensordict entries only): tanh,
+    the optional clamp off +-1, and the affine map onto ``[low, high]`` when not ``[-1, 1]``."""
+    feature = feature.tanh()
+    if tanh.clamp:
+        eps = torch.finfo(feature.dtype).resolution
+        feature = feature.clamp(-1 + eps, 1 - eps)
+    if tanh.non_trivial:  # as TanhModule tests it (a dict of flags: the map always runs there too)
+        feature = low + (high - low) * (feature + 1) / 2
+    return feature
 
 
 # ----------------------------------------------------------------------------- envs and transforms

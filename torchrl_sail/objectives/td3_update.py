@@ -39,6 +39,7 @@ from torchrl_sail._compat import (
     reduce_loss,
     soft_update_pairs,
     tanh_bounds,
+    tanh_map,
 )
 from torchrl_sail.envs.nstep import nstep_view
 
@@ -472,19 +473,11 @@ class TD3Update:
         return torch.autocast(self._device_type, dtype=dtype, enabled=dtype is not None)
 
     def _action(self, program: list, obs: torch.Tensor) -> torch.Tensor:
-        # TanhModule's map: tanh, optional clamp, affine map onto [low, high] when not [-1, 1].
-        # The squashing runs in the parameters' precision also under bf16 autocast (the last layer
-        # does, see _run): in bfloat16, tanh(x) rounds to exactly +-1 from |x| ~ 3 on, and its
-        # gradient 1 - tanh^2 to 0, which stalls the actor.
-        feature = _run(program, obs).tanh()
-        tanh = self._tanh
-        if tanh.clamp:
-            eps = torch.finfo(feature.dtype).resolution
-            feature = feature.clamp(-1 + eps, 1 - eps)
-        if tanh.non_trivial:  # as TanhModule tests it (a dict of flags: the map always runs there too)
-            low, high = self._tanh_bounds
-            feature = low + (high - low) * (feature + 1) / 2
-        return feature
+        # TanhModule's map (tanh, optional clamp, affine map onto [low, high]). The squashing runs
+        # in the parameters' precision also under bf16 autocast (the last layer does, see _run): in
+        # bfloat16, tanh(x) rounds to exactly +-1 from |x| ~ 3 on, and its gradient 1 - tanh^2 to 0,
+        # which stalls the actor.
+        return tanh_map(self._tanh, _run(program, obs), *self._tanh_bounds)
 
     def _critic_input(self, batch: TensorDictBase, action: torch.Tensor, prefix: tuple = ()) -> torch.Tensor:
         action_key = self.loss.tensor_keys.action
