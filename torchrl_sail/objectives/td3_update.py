@@ -214,7 +214,7 @@ class TD3Update:
     Examples:
         >>> import torch
         >>> from tensordict import TensorDict
-        >>> from tensordict.nn import CudaGraphModule, TensorDictModule, TensorDictSequential
+        >>> from tensordict.nn import TensorDictModule, TensorDictSequential
         >>> from torchrl.data import Bounded
         >>> from torchrl.modules import MLP, TanhModule, ValueOperator
         >>> from torchrl.objectives import SoftUpdate
