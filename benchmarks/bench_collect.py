@@ -31,7 +31,7 @@ import torch
 from hydra import compose, initialize_config_dir
 from torchrl.envs import ExplorationType, GymEnv, set_exploration_type
 
-from torchrl_sail.runs import cpu_model
+from torchrl_sail.runs import cpu_flags, cpu_model
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "examples"))
@@ -115,15 +115,6 @@ def measure(args) -> dict[str, list[float]]:
     return {layer: [1e3 * t / args.frames for t in ts] for layer, ts in times.items()}
 
 
-def cpu_has_bf16() -> bool:
-    """Whether the CPU has native bfloat16 products (AVX512-BF16 or AMX), from /proc/cpuinfo."""
-    try:
-        flags = Path("/proc/cpuinfo").read_text()
-    except OSError:
-        return False
-    return "avx512_bf16" in flags or "amx_bf16" in flags
-
-
 def main(argv=None) -> None:
     args = parse_args(argv)
     torch.set_num_threads(args.threads)
@@ -139,7 +130,7 @@ def main(argv=None) -> None:
         setup = {
             "command": " ".join(["python", "benchmarks/bench_collect.py", *(argv or sys.argv[1:])]),
             "cpu_model": cpu_model(),
-            "avx512_bf16_or_amx": cpu_has_bf16(),
+            "avx512_bf16_or_amx": bool({"avx512_bf16", "amx_bf16"} & set(cpu_flags())),
             "threads": args.threads,
             "torch": torch.__version__,
             "env": args.env,

@@ -370,19 +370,6 @@ def markdown(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def cpu() -> dict:
-    """The CPU's model and the flags that decide its matrix-product speed (Linux /proc/cpuinfo)."""
-    try:
-        text = Path("/proc/cpuinfo").read_text()
-    except OSError:
-        return {}
-    fields = dict(line.split(":", 1) for line in text.splitlines() if ":" in line)
-    fields = {key.strip(): value.strip() for key, value in fields.items()}
-    flags = set(fields.get("flags", "").split())
-    wanted = ("avx2", "avx512f", "avx512_bf16", "amx_bf16", "amx_tile")
-    return {"cpu_model": fields.get("model name", "unknown"), "cpu_flags": [f for f in wanted if f in flags]}
-
-
 def gpu(device: str) -> dict:
     if not device.startswith("cuda"):
         return {}
@@ -398,8 +385,11 @@ def machine(device: str = "cpu") -> dict:
         except importlib.metadata.PackageNotFoundError:
             return "not installed"
 
+    from torchrl_sail.runs import cpu_flags, cpu_model
+
     return {
-        **cpu(),
+        "cpu_model": cpu_model(),
+        "cpu_flags": cpu_flags(),
         **gpu(device),
         "cpu_count": os.cpu_count(),
         "load_1min": os.getloadavg()[0],

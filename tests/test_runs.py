@@ -279,3 +279,14 @@ def test_write_atomic_replaces_whole_files(tmp_path):
     write_atomic(tmp_path / "a.json", "one")
     write_atomic(tmp_path / "a.json", "two")
     assert (tmp_path / "a.json").read_text() == "two" and [p.name for p in tmp_path.iterdir()] == ["a.json"]
+
+
+def test_cpu_flags_reads_proc_cpuinfo(monkeypatch, tmp_path):
+    cpuinfo = tmp_path / "cpuinfo"
+    cpuinfo.write_text("model name\t: Some CPU\nflags\t\t: fpu avx2 sse amx_tile avx512f amx_bf16\n")
+    real_path = runs.Path
+    monkeypatch.setattr(runs, "Path", lambda p: cpuinfo if p == "/proc/cpuinfo" else real_path(p))
+    assert runs.cpu_flags() == ["avx2", "avx512f", "amx_bf16", "amx_tile"]  # MATMUL_FLAGS' order
+    assert runs.cpu_model() == "Some CPU"
+    cpuinfo.unlink()
+    assert runs.cpu_flags() == [] and runs.cpu_model() is None

@@ -51,6 +51,7 @@ __all__ = [
     "SUMMARY",
     "add_evaluation",
     "checkpoint_dir",
+    "cpu_flags",
     "cpu_model",
     "is_finished",
     "last_checkpoint",
@@ -419,6 +420,22 @@ def cpu_model() -> str | None:
     except OSError:
         pass
     return None
+
+
+#: The CPU flags that decide the matrix-product speed of fp32 and bfloat16 on x86.
+MATMUL_FLAGS = ("avx2", "avx512f", "avx512_bf16", "amx_bf16", "amx_tile")
+
+
+def cpu_flags() -> list[str]:
+    """Which of :data:`MATMUL_FLAGS` the CPU has (Linux ``/proc/cpuinfo``), ``[]`` where it cannot be read."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("flags"):
+                flags = set(line.split(":", 1)[1].split())
+                return [flag for flag in MATMUL_FLAGS if flag in flags]
+    except OSError:
+        pass
+    return []
 
 
 def write_atomic(path: Path, text: str) -> None:
