@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import importlib
 import importlib.metadata
+from pathlib import Path
 
 import pytest
 import torch
@@ -121,3 +122,17 @@ def test_tanh_map_is_tanh_modules_map(clamp):
     param = 4 * torch.randn(16, 2)
     expected = tanh(TensorDict({"param": param}, [16]))["action"]
     assert torch.equal(_compat.tanh_map(tanh, param, *_compat.tanh_bounds(tanh)), expected)
+
+
+def test_native_bf16_matmul_follows_the_cpu_flags():
+    """oneDNN runs bf16 products on AVX-512 (bw, vl, dq) or AMX; an AVX2-only x86 CPU emulates them."""
+    lines = Path("/proc/cpuinfo").read_text().splitlines() if Path("/proc/cpuinfo").exists() else []
+    flags = next((set(line.split(":", 1)[1].split()) for line in lines if line.startswith("flags")), set())
+    if "avx2" not in flags:
+        pytest.skip("not an x86 CPU with /proc/cpuinfo flags")
+    native = _compat.native_bf16_matmul("cpu")
+    if {"avx512bw", "avx512vl", "avx512dq"} <= flags or "amx_bf16" in flags:
+        assert native
+    else:
+        assert not native
+    assert _compat.native_bf16_matmul(torch.device("meta"))  # no emulation to warn about
