@@ -10,9 +10,12 @@ and deterministic evaluations of 10 episodes every 10k frames, in
 ``<out>/<stage>/<teacher>/<env>/<method>/seed<seed>`` (under each stage, the layout of
 ``run_matrix.py``), so ``aggregate.py <out>`` reads it. The queue is ordered so that the results table fills cell by
 cell: seed 0 of every cell first, then the other seeds, then the 1M-frame runs, then the
-teacher-quality and teacher-rule sweeps. ``--jobs`` runs go at once; rerunning the same command
-after an interruption continues where it stopped. ``--teachers-dir`` holds the SAIL authors'
-teacher files (``expert_data_no_img_<Env>_scores_<score>_episodes_1.npz``).
+teacher-quality and teacher-rule sweeps. ``--stages precision`` (never a default) pairs
+``optim.precision=fp32`` and ``bf16`` on Hopper-v4, 100k frames, seeds 0-2; it needs bf16
+hardware (AVX-512 or AMX, or a GPU with ``--overrides device=cuda``). ``--jobs`` runs go at
+once; rerunning the same command after an interruption continues where it stopped.
+``--teachers-dir`` holds the SAIL authors' teacher files
+(``expert_data_no_img_<Env>_scores_<score>_episodes_1.npz``).
 
 ``--collect DEST`` copies what the report needs of every finished run under ``--out`` to the
 same place under ``DEST`` (``aggregate.py DEST`` reads it): ``config.yaml``, ``summary.json``,
@@ -37,6 +40,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from run_matrix import REPO, Teacher, record_matrix, script_for  # noqa: E402
+
+from torchrl_sail._compat import native_bf16_matmul  # noqa: E402
 
 # The authors' one-trajectory teachers (their settings.py optimal_score names the file).
 PAPER_TEACHERS = {
@@ -116,7 +121,28 @@ def plan() -> list[Cell]:
             )
             for rule in ("fifo", "union")
         ]
+    # fp32 against bf16 (optim.precision), seed by seed, so each pair runs side by side: not in the
+    # default stages, as bf16 needs bf16 hardware (--stages precision, on AVX-512/AMX or a GPU)
+    cells += [
+        Cell(
+            "precision",
+            "Hopper-v4",
+            "sail",
+            seed,
+            100_000,
+            teacher=f"paper-{precision}",
+            overrides=(f"optim.precision={precision}",),
+        )
+        for seed in (0, 1, 2)
+        for precision in ("fp32", "bf16")
+    ]
     return cells
+
+
+def device_of(overrides: list[str]) -> str:
+    """The torch device that ``--overrides`` give the runs (the example's default: ``cpu``)."""
+    devices = [item.split("=", 1)[1] for item in overrides if item.startswith("device=")]
+    return devices[-1] if devices else "cpu"
 
 
 def teacher_path(cell: Cell, teachers_dir: Path, random_teacher: Path | None) -> Path | None:
@@ -127,8 +153,11 @@ def teacher_path(cell: Cell, teachers_dir: Path, random_teacher: Path | None) ->
     return None  # "shipped": the teacher shipped for the env (examples/teachers)
 
 
-def command(cell: Cell, out: Path, teacher: Path | None, python: str = sys.executable) -> list[str]:
-    """The run's command: the training script of the method's family (``sail_td3.py``, ``gail.py``, ``bc.py``)."""
+def command(
+    cell: Cell, out: Path, teacher: Path | None, python: str = sys.executable, extra: tuple[str, ...] = ()
+) -> list[str]:
+    """The run's command: the training script of the method's family (``sail_td3.py``, ``gail.py``, ``bc.py``),
+    with the cell's overrides, then ``extra`` (``--overrides``)."""
     run_dir = out / cell.stage / cell.teacher / cell.env / cell.method / f"seed{cell.seed}"
     return [
         python,
@@ -140,6 +169,7 @@ def command(cell: Cell, out: Path, teacher: Path | None, python: str = sys.execu
         *COMMON,
         *([f"teacher.path={teacher}"] if teacher is not None else []),
         *cell.overrides,
+        *extra,
         f"hydra.run.dir={run_dir}",
     ]
 
@@ -187,7 +217,20 @@ def main(argv: list[str] | None = None) -> int:
         help="a near-random Hopper-v4 teacher (make_teachers.py); without it the 'random' cells are skipped",
     )
     parser.add_argument("--out", type=Path, required=True)
-    parser.add_argument("--stages", nargs="+", default=["main", "scale", "teachers", "buffer"])
+    parser.add_argument(
+        "--stages",
+        nargs="+",
+        choices=["main", "scale", "teachers", "buffer", "precision"],
+        default=["main", "scale", "teachers", "buffer"],
+        help="precision (fp32 against bf16) is never a default: it needs bf16 hardware",
+    )
+    parser.add_argument(
+        "--overrides",
+        nargs="+",
+        default=[],
+        metavar="KEY=VALUE",
+        help="Hydra overrides for every run, e.g. device=cuda optim.cudagraphs=true",
+    )
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--dry-run", action="store_true")
     parser.add_argument("--collect", type=Path, metavar="DEST", help="copy the finished runs' results, run nothing")
@@ -203,8 +246,22 @@ def main(argv: list[str] | None = None) -> int:
     if missing:
         parser.error(f"--teachers-dir {args.teachers_dir} lacks {', '.join(missing)}")
     cells = [c for c in plan() if c.stage in args.stages and (c.teacher != "random" or args.random_teacher)]
+    device = device_of(args.overrides)
+    if "precision" in args.stages and not args.dry_run and not native_bf16_matmul(device):
+        parser.error(
+            f"--stages precision runs optim.precision=bf16, which the {device} here emulates (a CPU without "
+            "AVX-512 or AMX: ~20x slower): run it where bf16 is native, or on a GPU with --overrides device=cuda"
+        )
     commands = [
-        (cell, command(cell, out, teacher_path(cell, args.teachers_dir.resolve(), args.random_teacher)))
+        (
+            cell,
+            command(
+                cell,
+                out,
+                teacher_path(cell, args.teachers_dir.resolve(), args.random_teacher),
+                extra=tuple(args.overrides),
+            ),
+        )
         for cell in cells
     ]
     if args.dry_run:

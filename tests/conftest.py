@@ -65,3 +65,10 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if item.path.stem in SLOW_MODULES:
             item.add_marker(pytest.mark.slow)
+
+
+def pytest_addoption(parser):
+    # The learning test's precision: `python -m pytest tests/test_learning.py --precision bf16` checks
+    # that optim.precision=bf16 learns too (the paired evidence beside the Hopper runs of
+    # `benchmarks/campaign.py --stages precision`); the suite runs fp32.
+    parser.addoption("--precision", choices=("fp32", "bf16"), default="fp32", help="optim.precision of test_learning")

@@ -7,6 +7,7 @@ import json
 from collections import Counter
 
 import pytest
+import torch
 import yaml
 from benchmark_scripts import load_benchmark
 
@@ -28,7 +29,7 @@ def test_plan_fills_the_table_seed_0_first():
     assert counts["td3_delayed", 0] == counts["dac_published", 0] == 4  # one seed per env
     assert len(main) == 44 and {c.frames for c in main} == {300_000}
     # the main table precedes the 1M-frame runs, which precede the two sweeps (seed 0 of both first)
-    order = {"main": 0, "scale": 1, "teachers": 2, "buffer": 2}
+    order = {"main": 0, "scale": 1, "teachers": 2, "buffer": 2, "precision": 3}
     stages = [order[c.stage] for c in cells]
     assert stages == sorted(stages)
     sweeps = [c.seed for c in cells if order[c.stage] == 2]
@@ -40,6 +41,35 @@ def test_plan_fills_the_table_seed_0_first():
     buffer = [c.overrides for c in cells if c.stage == "buffer"]
     assert sorted(buffer) == sorted([("teacher.eviction=fifo",), ("teacher.eviction=union",)] * 2)
     assert len(set(cells)) == len(cells)  # no run twice
+    # fp32 beside bf16, seed by seed, on the paper's Hopper teacher
+    precision = [(c.env, c.seed, c.frames, c.teacher, c.overrides) for c in cells if c.stage == "precision"]
+    assert precision == [
+        ("Hopper-v4", seed, 100_000, f"paper-{p}", (f"optim.precision={p}",))
+        for seed in (0, 1, 2)
+        for p in ("fp32", "bf16")
+    ]
+
+
+def test_precision_stage_needs_bf16_hardware_and_takes_overrides(tmp_path, monkeypatch, capsys):
+    teachers = tmp_path / "teachers"
+    teachers.mkdir()
+    for name in campaign.PAPER_TEACHERS.values():
+        (teachers / name).touch()
+    args = ["--teachers-dir", str(teachers), "--out", str(tmp_path / "out"), "--stages", "precision"]
+    monkeypatch.setattr(campaign, "native_bf16_matmul", lambda device: torch.device(device).type == "cuda")
+    with pytest.raises(SystemExit):
+        campaign.main(args)  # the default device, the CPU here, has no bf16 hardware
+    assert "--stages precision runs optim.precision=bf16, which the cpu here emulates" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+    launched = []
+    monkeypatch.setattr(
+        campaign.subprocess, "run", lambda cmd, **kw: launched.append(cmd) or argparse.Namespace(returncode=0)
+    )
+    assert campaign.main([*args, "--overrides", "device=cuda", "optim.cudagraphs=true", "--jobs", "1"]) == 0
+    assert len(launched) == 6
+    assert all(cmd[-3:-1] == ["device=cuda", "optim.cudagraphs=true"] for cmd in launched)
+    assert "optim.precision=bf16" in launched[1]
+    assert launched[1][-1].endswith("precision/paper-bf16/Hopper-v4/sail/seed0")
 
 
 def test_command_is_resumable_single_threaded_and_in_its_own_folder(tmp_path):
@@ -134,7 +164,8 @@ def test_matrix_records_every_stage_and_label(tmp_path, monkeypatch):
         campaign.subprocess, "run", lambda cmd, **kw: launched.append(cmd) or argparse.Namespace(returncode=0)
     )
     assert campaign.main(["--teachers-dir", str(teachers), "--out", str(tmp_path / "out"), "--jobs", "1"]) == 0
-    assert len(launched) == len([c for c in campaign.plan() if c.teacher != "random"])
+    default = [c for c in campaign.plan() if c.teacher != "random" and c.stage != "precision"]
+    assert len(launched) == len(default)  # not the precision stage: never a default
     main = json.loads((tmp_path / "out" / "main" / "matrix.json").read_text())
     assert main["teachers"] == {"paper": str(teachers)}  # the authors' folder: one file per env
     assert {(s["envs"][0], s["methods"][0], s["seeds"][0]) for s in main["sweeps"]} == {
