@@ -12,7 +12,9 @@ Each layer adds one piece on top of the previous one and is timed over ``--frame
 - ``+ policy``: the example's exploration policy (actor, tanh, Gaussian noise) before each step;
 - ``Collector``: the example's TorchRL ``Collector`` over the same env and policy, at its batch size.
 
-The differences between consecutive layers are what each one costs per frame.
+The differences between consecutive layers are what each one costs per frame. ``--per-transform``
+splits ``env stack`` into one layer per transform of the example's env (``+ DoubleToFloat``,
+``+ StepCounter``, ...): ``GymEnv`` under a ``TransformedEnv`` holding the first k of them.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ import gymnasium as gym
 import numpy as np
 import torch
 from hydra import compose, initialize_config_dir
-from torchrl.envs import ExplorationType, GymEnv, set_exploration_type
+from torchrl.envs import Compose, ExplorationType, GymEnv, TransformedEnv, set_exploration_type
 
 from torchrl_sail.runs import cpu_flags, cpu_model
 
@@ -39,8 +41,6 @@ sys.path.insert(0, str(REPO / "examples"))
 from config_schema import register_config_schema  # noqa: E402
 from utils import make_agent, make_collector, make_env  # noqa: E402
 
-LAYERS = ("gymnasium", "GymEnv", "env stack", "+ policy", "Collector")
-
 
 def parse_args(argv=None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -49,6 +49,7 @@ def parse_args(argv=None) -> argparse.Namespace:
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--overrides", default="", help="Hydra overrides of the example's config")
+    parser.add_argument("--per-transform", action="store_true", help="one layer per transform of the env stack")
     parser.add_argument("--label", default="current", help="names this measurement in --out")
     parser.add_argument("--out", type=Path, default=None, help="JSON file: one record per --label, replaced")
     return parser.parse_args(argv)
@@ -99,17 +100,36 @@ def time_collector(cfg, env, policy, frames: int) -> float:
     return elapsed * frames / collected
 
 
+def partial_stacks(env) -> dict[str, TransformedEnv]:
+    """``GymEnv`` under the first k transforms of ``env``'s stack (copies), for k = 1 .. all but the last."""
+    transforms = list(env.transform)
+    return {
+        f"+ {type(transforms[k - 1]).__name__}": TransformedEnv(
+            GymEnv(env.base_env._env.spec.id, device=env.base_env.device),
+            Compose(*[t.clone() for t in transforms[:k]]),
+        )
+        for k in range(1, len(transforms))
+    }
+
+
 def measure(args) -> dict[str, list[float]]:
     overrides = f"collector.init_random_frames=0 {args.overrides}"
     cfg = example_config(args.env, f"collector.total_frames={2 * args.frames + 10_000} {overrides}")
     env = make_env(cfg, 0)
     _, _, policy = make_agent(cfg, env)
-    times = {layer: [] for layer in LAYERS}
+    partial = partial_stacks(env) if args.per_transform else {}
+    # the full stack is the "env stack" layer: named after its last transform with --per-transform
+    stack = f"+ {type(env.transform[-1]).__name__} (env stack)" if args.per_transform else "env stack"
+    layers = ["gymnasium", "GymEnv", *partial, stack, "+ policy", "Collector"]
+    times = {layer: [] for layer in layers}
     with torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):
         for _ in range(args.rounds):
             times["gymnasium"].append(time_gymnasium(args.env, args.frames))
             times["GymEnv"].append(time_env(GymEnv(args.env), args.frames))
-            times["env stack"].append(time_env(env, args.frames))
+            for layer, partial_env in partial.items():
+                partial_env.set_seed(0)
+                times[layer].append(time_env(partial_env, args.frames))
+            times[stack].append(time_env(env, args.frames))
             times["+ policy"].append(time_env(env, args.frames, policy))
             times["Collector"].append(time_collector(cfg, env, policy, args.frames))
     return {layer: [1e3 * t / args.frames for t in ts] for layer, ts in times.items()}
@@ -120,11 +140,12 @@ def main(argv=None) -> None:
     torch.set_num_threads(args.threads)
     ms = measure(args)
     rows, previous = [], 0.0
-    print(f"{'layer':<12} {'ms/frame':>9} {'added':>7}")
-    for layer in LAYERS:
+    width = max(map(len, ms))
+    print(f"{'layer':<{width}} {'ms/frame':>9} {'added':>7}")
+    for layer in ms:
         median = statistics.median(ms[layer])
         rows.append({"layer": layer, "ms_per_frame": median, "added": median - previous, "rounds": ms[layer]})
-        print(f"{layer:<12} {median:9.3f} {median - previous:+7.3f}")
+        print(f"{layer:<{width}} {median:9.3f} {median - previous:+7.3f}")
         previous = median
     if args.out is not None:
         setup = {

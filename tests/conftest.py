@@ -58,6 +58,7 @@ SLOW_MODULES = {
     "test_ray",
     "test_readme",
     "test_docs",
+    "test_bench_collect",
 }
 
 
