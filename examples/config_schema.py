@@ -205,6 +205,10 @@ class DiscriminatorOptimConfig:
     batch_size: int = 256  # ... each of 256 teacher + 256 agent rows
     entropy_coef: float = 0.01  # a PyTorch port reports D saturation at 0.01 and success at 0.05
     gp_coef: float = 10.0
+    # Remedies for a saturating D (none is the authors'; each off by default):
+    label_smoothing: float = 0.0  # one-sided: the teacher rows' BCE target is 1 - label_smoothing
+    instance_noise: float = 0.0  # std of Gaussian noise on D's (normalised) inputs while it trains
+    max_accuracy: Optional[float] = None  # skip a D step when its balanced accuracy on the batch is above
 
 
 @dataclass
@@ -256,6 +260,7 @@ class NetworkConfig:
     discriminator_cells: List[int] = field(default_factory=lambda: [256, 256])
     discriminator_activation: Activation = Activation.tanh
     normalize_observations: bool = True  # D's running observation normalisation
+    discriminator_spectral_norm: bool = False  # spectral normalisation of D's layers (not the authors')
 
 
 @dataclass
@@ -490,6 +495,19 @@ def check_config(cfg: DictConfig) -> None:
             "is TD3's (algo.learner=td3)",
         ),
         ("optim.discriminator.lr", d.lr, d.lr > 0, "must be > 0"),
+        ("optim.discriminator.label_smoothing", d.label_smoothing, 0 <= d.label_smoothing < 0.5, "must be in [0, 0.5)"),
+        (
+            "optim.discriminator.instance_noise",
+            d.instance_noise,
+            0 <= d.instance_noise < float("inf"),
+            "must be a finite number >= 0",
+        ),
+        (
+            "optim.discriminator.max_accuracy",
+            d.max_accuracy,
+            d.max_accuracy is None or 0.5 <= d.max_accuracy < 1,
+            "must be in [0.5, 1) (a balanced accuracy; 1 would never skip), or null",
+        ),
         ("algo.bc.lr", cfg.algo.bc.lr, cfg.algo.bc.lr > 0, "must be > 0"),
         ("optim.gamma", o.gamma, 0 < o.gamma <= 1, "must be in (0, 1]"),
         ("optim.tau", o.tau, 0 < o.tau <= 1, "must be in (0, 1]"),

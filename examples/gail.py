@@ -58,7 +58,9 @@ from torchrl.objectives import ClipPPOLoss, group_optimizers
 from torchrl.objectives.value import GAE
 from utils import (
     copy_observation_norm,
+    discriminator_step,
     make_discriminator,
+    make_discriminator_loss,
     make_env,
     make_ppo_models,
     make_replay,
@@ -67,7 +69,7 @@ from utils import (
 )
 from video import log_video, make_render_env
 
-from torchrl_sail import TRANSITION_KEYS, DiscriminatorLoss, DivergenceCheck, MixedReplayBuffer, observation_normalizer
+from torchrl_sail import TRANSITION_KEYS, DivergenceCheck, MixedReplayBuffer, observation_normalizer
 from torchrl_sail.runs import checkpoint_dir, last_checkpoint, start_or_resume, train_timing
 
 register_config_schema()  # the typed schema conf/config.yaml extends: Hydra checks every value against it
@@ -107,7 +109,7 @@ def main(cfg):  # noqa: F821
         loss_critic_type=str(p.loss_critic_type),
         normalize_advantage=True,
     )
-    d_loss = DiscriminatorLoss(discriminator, entropy_coef=d.entropy_coef, gp_coef=d.gp_coef)
+    d_loss = make_discriminator_loss(cfg, discriminator)
     optimizers = {
         "ppo": group_optimizers(
             torch.optim.Adam(actor.parameters(), lr=p.lr, eps=1e-5),
@@ -183,11 +185,7 @@ def main(cfg):  # noqa: F821
         for batch in d_batches.sample(
             2 * d.batch_size, teacher_fraction=0.5, num_batches=max(1, data.numel() // d.batch_size)
         ).unbind(0):
-            out = d_loss(batch)
-            sum(value for key, value in out.items() if key.startswith("loss_")).backward()
-            optimizers["discriminator"].step()
-            optimizers["discriminator"].zero_grad(set_to_none=True)
-            metrics.update({f"d/{key}": value for key, value in out.items()})
+            metrics.update(discriminator_step(cfg, d_loss, optimizers["discriminator"], batch))
         if shaped:
             reward.coef = metrics["pofd/lambda_1"] = pofd_lambda(r.coef, r.coef_decay, before // p.frames_per_batch)
         data = reward(data)  # the updated D's reward (gail: replaces the delayed env reward; pofd: shapes it)

@@ -15,7 +15,14 @@ from omegaconf import DictConfig, OmegaConf
 from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.record.loggers import get_logger
 
-from torchrl_sail.runs import add_evaluation, new_run, plot_learning_curve, resume_mode, write_summary
+from torchrl_sail.runs import (
+    add_evaluation,
+    discriminator_summary,
+    new_run,
+    plot_learning_curve,
+    resume_mode,
+    write_summary,
+)
 
 EXAMPLES_DIR = Path(__file__).resolve().parent
 
@@ -154,6 +161,8 @@ def write_run_summary(run_dir: Path, cfg: DictConfig, *, teacher_return: float, 
             "total_frames": 0 if results.get("offline") else cfg.collector.total_frames,
             "alpha_switched_at_frame": alpha_switch_frame,
             **results,
+            # D's saturation, skipped steps and last statistics, from the logs (absent without a D)
+            **({"discriminator": d} if (d := discriminator_summary(run_dir)) is not None else {}),
         },
         code_dir=EXAMPLES_DIR,
     )

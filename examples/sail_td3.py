@@ -46,6 +46,7 @@ from run_utils import (
 from torchrl.checkpoint import Checkpoint, GlobalRNGState
 from utils import (
     FilledRows,
+    discriminator_step,
     make_absorbing,
     make_agent,
     make_collector,
@@ -138,13 +139,6 @@ def main(cfg):  # noqa: F821
         torch.device(cfg.device).type, dtype=torch.bfloat16, enabled=cfg.optim.precision == "bf16"
     )
 
-    def discriminator_update(batch) -> dict:
-        out = d_loss(batch)
-        sum(value for key, value in out.items() if key.startswith("loss_")).backward()
-        optimizers["discriminator"].step()
-        optimizers["discriminator"].zero_grad(set_to_none=True)
-        return {f"d/{key}": value for key, value in out.items()}
-
     def rnd_update(batch) -> dict:
         rnd_loss.obs_rms = rnd.obs_rms  # the env's running statistics, created at its first step
         out = rnd_loss(batch[~batch["is_teacher"]])  # the predictor learns the agent's states
@@ -233,11 +227,14 @@ def main(cfg):  # noqa: F821
             if num_d_steps:
                 with timeit("sample"):
                     d_block = d_batches.sample(2 * d.batch_size, teacher_fraction=0.5, num_batches=num_d_steps)
+                skipped = 0.0
                 for batch in d_block.unbind(0):
                     with timeit("discriminator"):
-                        metrics.update(discriminator_update(batch))
+                        metrics.update(discriminator_step(cfg, d_loss, optimizers["discriminator"], batch))
+                        skipped += metrics["d/skipped"]
                         if rnd is not None:
                             metrics.update(rnd_update(batch))
+                metrics["d/skipped"] = skipped / num_d_steps  # the block's share of skipped D steps
             # NaN/inf stops the run here, at the logging cadence (and before any checkpoint), before
             # the weights reach the workers, an evaluation or a log.
             log_now = frames - last_log >= cfg.logger.log_every_frames or crossings(

@@ -299,7 +299,32 @@ def make_discriminator(cfg: DictConfig, env) -> Discriminator:
         num_cells=tuple(cfg.network.discriminator_cells),
         activation_class=_ACTIVATIONS[cfg.network.discriminator_activation],
         normalize_observations=cfg.network.normalize_observations,
+        spectral_norm=cfg.network.discriminator_spectral_norm,
     ).to(cfg.device)
+
+
+def make_discriminator_loss(cfg: DictConfig, discriminator: Discriminator) -> DiscriminatorLoss:
+    d = cfg.optim.discriminator
+    return DiscriminatorLoss(
+        discriminator,
+        entropy_coef=d.entropy_coef,
+        gp_coef=d.gp_coef,
+        label_smoothing=d.label_smoothing,
+        instance_noise=d.instance_noise,
+    )
+
+
+def discriminator_step(cfg: DictConfig, d_loss: DiscriminatorLoss, optimizer, batch) -> dict:
+    """One D minibatch: the loss, then Adam's step unless D already tells the two sides apart beyond
+    ``optim.discriminator.max_accuracy`` on this batch (its balanced accuracy); ``d/skipped`` says which."""
+    out = d_loss(batch)
+    bound = cfg.optim.discriminator.max_accuracy
+    skip = bound is not None and (out["accuracy_teacher"] + out["accuracy_agent"]).item() / 2 > bound
+    if not skip:
+        sum(value for key, value in out.items() if key.startswith("loss_")).backward()
+        optimizer.step()
+        optimizer.zero_grad(set_to_none=True)
+    return {**{f"d/{key}": value.detach() for key, value in out.items()}, "d/skipped": float(skip)}
 
 
 def make_reward(cfg: DictConfig, discriminator: Discriminator, rnd: RNDReward | None = None, **kwargs):
@@ -379,10 +404,7 @@ def make_losses(cfg: DictConfig, actor, critic, discriminator, action_spec):
         loss.set_keys(terminated="done")
     updater = SoftUpdate(loss, tau=o.tau)
     scheduler = AlphaScheduler(share, mode=a.mode, initial=a.initial, final=a.final, anneal_frames=a.anneal_frames)
-    d_loss = DiscriminatorLoss(
-        discriminator, entropy_coef=o.discriminator.entropy_coef, gp_coef=o.discriminator.gp_coef
-    )
-    return loss, updater, scheduler, d_loss
+    return loss, updater, scheduler, make_discriminator_loss(cfg, discriminator)
 
 
 def make_optimizers(cfg: DictConfig, loss, discriminator, rnd: RNDReward | None = None) -> dict:

@@ -171,6 +171,9 @@ def test_optional_blocks_are_typed_when_set():
         (["collector.frames_per_batch=300"], "optim.discriminator.every_frames=500: must be a multiple"),
         (["algo=td3_delayed", "collector.frames_per_batch=300"], "optim.train_every_frames=1000: must be a multiple"),
         (["algo=sail_sac", "optim.discriminator.every_frames=750"], "optim.discriminator.every_frames=750"),
+        (["optim.discriminator.label_smoothing=0.5"], "optim.discriminator.label_smoothing=0.5: must be in [0, 0.5)"),
+        (["optim.discriminator.instance_noise=-1"], "optim.discriminator.instance_noise=-1.0: must be a finite"),
+        (["optim.discriminator.max_accuracy=1.0"], "optim.discriminator.max_accuracy=1.0: must be in [0.5, 1)"),
     ],
 )
 def test_check_config_keeps_ranges_and_cross_field_rules(overrides, message):
@@ -229,3 +232,49 @@ def test_env_kwargs_reach_the_env_and_the_teacher_check_names_them():
     assert env.observation_spec["observation"].shape[-1] == 13  # x position + 11 + time feature
     with pytest.raises(ValueError, match="env.kwargs"):  # the shipped teacher has 12 columns
         make_teacher(cfg, env)
+
+
+def test_discriminator_remedies_reach_the_loss_the_net_and_the_step():
+    import torch
+    from tensordict import TensorDict
+    from utils import discriminator_step, make_discriminator, make_discriminator_loss
+
+    from torchrl_sail import make_sail_env
+
+    cfg = make(
+        "optim.discriminator.label_smoothing=0.1",
+        "optim.discriminator.instance_noise=0.2",
+        "optim.discriminator.max_accuracy=0.9",
+        "network.discriminator_spectral_norm=true",
+        "network.discriminator_cells=[8,8]",
+    )
+    check_config(cfg)
+    discriminator = make_discriminator(cfg, make_sail_env("Pendulum-v1", max_episode_steps=200))
+    assert discriminator.net.spectral_norm
+    d_loss = make_discriminator_loss(cfg, discriminator)
+    assert d_loss.label_smoothing.item() == pytest.approx(0.1) and d_loss.instance_noise.item() == pytest.approx(0.2)
+    optimizer = torch.optim.Adam(discriminator.parameters(), lr=1e-2)
+    tag = torch.arange(8) < 4
+
+    def batch(separation):  # teacher rows at +separation, agent rows at -separation
+        sign = torch.where(tag, 1.0, -1.0).unsqueeze(-1)
+        obs = separation * sign.expand(8, 4) + 0.01 * torch.randn(8, 4)
+        return TensorDict(observation=obs, action=torch.zeros(8, 1), is_teacher=tag, batch_size=[8])
+
+    def raw_weights():
+        return [p.detach().clone() for p in discriminator.parameters()]
+
+    # overlapping sides: D steps; far apart and learned: D is past the bound and skips
+    before = raw_weights()
+    out = discriminator_step(cfg, d_loss, optimizer, batch(0.0))
+    assert out["d/skipped"] == 0.0 and any(not torch.equal(a, b) for a, b in zip(before, raw_weights()))
+    for _ in range(200):
+        out = discriminator_step(cfg, d_loss, optimizer, batch(3.0))
+        if out["d/skipped"]:
+            break
+    assert out["d/skipped"] == 1.0
+    assert (out["d/accuracy_teacher"] + out["d/accuracy_agent"]).item() / 2 > 0.9
+    before = raw_weights()
+    assert discriminator_step(cfg, d_loss, optimizer, batch(3.0))["d/skipped"] == 1.0
+    assert all(torch.equal(a, b) for a, b in zip(before, raw_weights()))  # a skipped step changes nothing
+    assert all(p.grad is None for p in discriminator.parameters())

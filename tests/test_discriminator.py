@@ -165,6 +165,29 @@ class TestDiscriminatorNet:
         obs, act = torch.randn(4, 3) * 7, torch.rand(4, 1)
         torch.testing.assert_close(net.features(obs, act), torch.cat([obs, act], -1))
 
+    def test_spectral_norm(self):
+        torch.manual_seed(0)
+        net = DiscriminatorNet(5, 2, num_cells=(16, 16), spectral_norm=True)
+        obs, act = torch.randn(64, 5), torch.rand(64, 2)
+        for _ in range(30):  # one power iteration per forward in training mode
+            net(obs, act)
+        linears = [m for m in net.mlp.modules() if isinstance(m, nn.Linear)]
+        assert len(linears) == 3
+        for layer in linears:
+            # the effective weight's largest singular value is 1; the raw one is not
+            assert torch.linalg.matrix_norm(layer.weight.detach(), 2).item() == pytest.approx(1.0, abs=1e-3)
+            assert torch.linalg.matrix_norm(layer.parametrizations.weight.original.detach(), 2).item() > 1.1
+        # eval mode: a pure function (no power iteration), saved and loaded with the weights
+        net.eval()
+        before = net(obs, act)
+        assert torch.equal(net(obs, act), before)
+        copy = DiscriminatorNet(5, 2, num_cells=(16, 16), spectral_norm=True)
+        copy.load_state_dict(net.state_dict())
+        copy.eval()
+        assert torch.equal(copy(obs, act), before)
+        net.reset_parameters()  # re-initialises the raw weights
+        assert not torch.equal(net(obs, act), before)
+
 
 class TestDiscriminator:
     def test_tensordict_face(self):
@@ -257,6 +280,65 @@ class TestDiscriminatorLoss:
             assert out[k].shape == ()
         for k in ("accuracy_teacher", "entropy", "grad_penalty", "reward_agent"):
             assert not out[k].requires_grad
+
+    def test_spread_and_logit_diagnostics_by_hand(self):
+        disc = _linear_disc([3.0, 4.0, 0.0, 0.0])
+        obs = [[1.0, 0, 0], [0.5, -1, 0], [-2, 0.25, 9], [0, 0, 0], [-1, 0, 0]]
+        out = DiscriminatorLoss(disc)(_tagged(obs, torch.zeros(5, 1), [True, False, True, False, True]))
+        softplus = lambda z: math.log1p(math.exp(z))  # noqa: E731
+        rt, ra = [softplus(z) for z in (3.0, -5.0, -3.0)], [softplus(z) for z in (-2.5, 0.0)]
+        std = lambda xs: math.sqrt(sum((x - sum(xs) / len(xs)) ** 2 for x in xs) / len(xs))  # noqa: E731
+        assert out["logit_teacher"].item() == pytest.approx(-5 / 3, rel=1e-6)
+        assert out["logit_agent"].item() == pytest.approx(-1.25, rel=1e-6)
+        assert out["reward_teacher_std"].item() == pytest.approx(std(rt), rel=1e-5)
+        assert out["reward_agent_std"].item() == pytest.approx(std(ra), rel=1e-5)
+
+    def test_label_smoothing_by_hand(self):
+        # teacher targets 1 - 0.2: BCE(z, 0.8) = softplus(-z) + 0.2 * z; agent targets stay 0
+        disc = _linear_disc([3.0, 4.0, 0.0, 0.0])
+        obs = [[1.0, 0, 0], [0.5, -1, 0], [-2, 0.25, 9], [0, 0, 0], [-1, 0, 0]]
+        tag = [True, False, True, False, True]
+        loss_fn = DiscriminatorLoss(disc, label_smoothing=0.2)
+        out = loss_fn(_tagged(obs, torch.zeros(5, 1), tag))
+        softplus = lambda z: math.log1p(math.exp(z))  # noqa: E731
+        bce = sum(softplus(-z) + 0.2 * z for z in (3.0, -5.0, -3.0)) / 3 + sum(softplus(z) for z in (-2.5, 0.0)) / 2
+        assert out["loss_discriminator"].item() == pytest.approx(bce, rel=1e-6)
+        # the smoothed optimum of a teacher row is a finite logit, log(0.8 / 0.2)
+        z = torch.tensor([math.log(4.0)], requires_grad=True)
+        torch.nn.functional.binary_cross_entropy_with_logits(z, torch.tensor([0.8])).backward()
+        assert abs(z.grad.item()) < 1e-6
+        loss_fn.label_smoothing = 0.0  # schedulable: back to the plain BCE
+        plain = DiscriminatorLoss(disc)(_tagged(obs, torch.zeros(5, 1), tag))["loss_discriminator"]
+        assert loss_fn(_tagged(obs, torch.zeros(5, 1), tag))["loss_discriminator"].item() == pytest.approx(plain.item())
+        with pytest.raises(ValueError, match="label_smoothing must be in \\[0, 0.5\\)"):
+            DiscriminatorLoss(disc, label_smoothing=0.5)
+
+    def test_instance_noise_by_hand(self):
+        # logit = 3*f0 + 4*f1 of the noisy features f + sigma * n, n the loss's randn_like draw
+        disc = _linear_disc([3.0, 4.0, 0.0, 0.0])
+        obs = torch.tensor([[1.0, 0, 0], [0.5, -1, 0], [-2, 0.25, 9], [0, 0, 0]])
+        tag = [True, False, True, False]
+        loss_fn = DiscriminatorLoss(disc, instance_noise=0.5)
+        torch.manual_seed(7)
+        out = loss_fn(_tagged(obs, torch.zeros(4, 1), tag))
+        torch.manual_seed(7)
+        noise = torch.randn(4, 4)
+        noisy = torch.cat([obs, torch.zeros(4, 1)], -1) + 0.5 * noise
+        z = (3 * noisy[:, 0] + 4 * noisy[:, 1]).tolist()
+        softplus = lambda x: math.log1p(math.exp(x))  # noqa: E731
+        bce = (softplus(-z[0]) + softplus(-z[2])) / 2 + (softplus(z[1]) + softplus(z[3])) / 2
+        assert out["loss_discriminator"].item() == pytest.approx(bce, rel=1e-5)
+        # the diagnostics and the penalty use the clean features: logits [3, -2.5, -5, 0], |grad| = 5
+        assert out["logit_teacher"].item() == pytest.approx(-1.0, rel=1e-6)
+        assert out["accuracy_agent"].item() == pytest.approx(0.5)
+        assert out["grad_penalty"].item() == pytest.approx(16.0, rel=1e-6)
+        # no noise outside training mode
+        loss_fn.eval()
+        clean = loss_fn(_tagged(obs, torch.zeros(4, 1), tag))["loss_discriminator"].item()
+        expected = (softplus(-3.0) + softplus(5.0)) / 2 + (softplus(-2.5) + softplus(0.0)) / 2
+        assert clean == pytest.approx(expected, rel=1e-6)
+        with pytest.raises(ValueError, match="instance_noise must be a finite number >= 0"):
+            DiscriminatorLoss(disc, instance_noise=-0.1)
 
     def test_unit_gradient_gives_zero_penalty(self):
         disc = _linear_disc([0.6, 0.0, 0.0, 0.8])  # |w| = 1
@@ -379,7 +461,7 @@ class TestDiscriminatorLoss:
         loss_fn = DiscriminatorLoss(disc)
         td = _tagged(torch.randn(4, 3), torch.zeros(4, 1), [1, 0, 1, 0])
         assert isinstance(loss_fn.entropy_coef, torch.Tensor)
-        assert {"entropy_coef", "gp_coef"} <= set(loss_fn.state_dict())
+        assert {"entropy_coef", "gp_coef", "label_smoothing", "instance_noise"} <= set(loss_fn.state_dict())
         loss_fn.entropy_coef = 0.5
         loss_fn.gp_coef = 2.0
         out = loss_fn(td)

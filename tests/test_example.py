@@ -71,6 +71,18 @@ def test_smoke_hopper_outputs(tmp_path, teacher_dir):
         assert rows, tag
     assert read_scalar(run_dir, "alpha")[-1][1] == 0.5
     assert read_scalar(run_dir, "replay/size")[-1] == (3000, 3000.0)
+    # D's saturation in the summary, from the logged accuracies
+    d = summary["discriminator"]
+    assert 0 <= d["saturated_fraction"] <= 1 and d["skipped_fraction"] == 0.0  # no max_accuracy: none skipped
+    assert d["last"]["accuracy_teacher"] == read_scalar(run_dir, "d/accuracy_teacher")[-1][1]
+    assert set(d["last"]) == {
+        "accuracy_teacher",
+        "accuracy_agent",
+        "reward_teacher",
+        "reward_agent",
+        "logit_teacher",
+        "logit_agent",
+    }
     png = (run_dir / "learning_curve.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 5000
     assert (run_dir / "config.yaml").exists()
@@ -78,6 +90,29 @@ def test_smoke_hopper_outputs(tmp_path, teacher_dir):
     state = saved(run_dir, "run", "replay")
     assert state["run"]["frames"] == 3000 and state["run"]["gradient_steps"] == 150
     assert state["replay"]["size"] == 3000 and len(state["replay"]["data"]["action"]) == 3000
+
+
+def test_discriminator_remedies_run_and_skip(tmp_path, teacher_dir):
+    run_dir = tmp_path / "run"
+    run(
+        run_dir,
+        "env=Hopper-v4",
+        f"teacher.path={teacher_dir / HOPPER}",
+        "collector.total_frames=2000",
+        "checkpoint.every_frames=0",
+        "logger.backends=[csv]",
+        "optim.discriminator.label_smoothing=0.1",
+        "optim.discriminator.instance_noise=0.1",
+        "optim.discriminator.max_accuracy=0.5",  # skips every step whose balanced accuracy is above chance
+        "network.discriminator_spectral_norm=true",
+        *TINY,
+    )
+    skipped = read_scalar(run_dir, "d/skipped")
+    assert skipped and all(0.0 <= value <= 1.0 for _, value in skipped)
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert summary["discriminator"]["skipped_fraction"] == pytest.approx(sum(v for _, v in skipped) / len(skipped))
+    state = saved(run_dir, "discriminator")["discriminator"]
+    assert any("parametrizations.weight.original" in key for key in state)  # spectral norm, saved
 
 
 def test_resume_restores_state(tmp_path, teacher_dir):

@@ -53,6 +53,7 @@ __all__ = [
     "checkpoint_dir",
     "cpu_flags",
     "cpu_model",
+    "discriminator_summary",
     "is_finished",
     "last_checkpoint",
     "new_run",
@@ -268,6 +269,55 @@ def last_checkpoint(run_dir: Path, run: dict) -> str | None:
     """``"<run_dir>/checkpoint, frame <n>"`` once a checkpoint is saved (for error messages), else ``None``."""
     path = checkpoint_dir(run_dir)
     return f"{path}, frame {run['frames']}" if (path / "manifest.json").exists() else None
+
+
+#: Both accuracies at or above this: the discriminator tells every row's side (saturated).
+D_SATURATED = 0.98
+_D_LAST = ("accuracy_teacher", "accuracy_agent", "reward_teacher", "reward_agent", "logit_teacher", "logit_agent")
+
+
+def discriminator_summary(run_dir: Path) -> dict | None:
+    """What a run's logged discriminator statistics say, for its ``summary.json``.
+
+    From the ``d/*`` scalars (logged at the logging cadence, the last D step before each log):
+    ``saturated_fraction``, the share of logged points where D's accuracy is at least
+    :data:`D_SATURATED` on both the teacher's and the agent's rows; ``last_saturated_frame``, the
+    last such point (``None``: never); ``skipped_fraction``, the mean of ``d/skipped`` (the share
+    of D steps skipped by ``optim.discriminator.max_accuracy``; ``None`` if not logged); and
+    ``last``, the last logged accuracy, reward and mean logit on each side. Also reads a results
+    copy (``scalars.csv``), as :func:`read_scalar` does.
+
+    Returns:
+        the summary, or ``None`` when the run logged no discriminator accuracy (no D).
+
+    Examples:
+        >>> import tempfile
+        >>> run_dir = Path(tempfile.mkdtemp())
+        >>> d = run_dir / "logs" / "scalars" / "d"
+        >>> d.mkdir(parents=True)
+        >>> _ = (d / "accuracy_teacher.csv").write_text("500,1.0\\n1000,0.99\\n1500,0.9\\n")
+        >>> _ = (d / "accuracy_agent.csv").write_text("500,0.99\\n1000,0.98\\n1500,1.0\\n")
+        >>> summary = discriminator_summary(run_dir)
+        >>> summary["saturated_fraction"], summary["last_saturated_frame"], summary["last"]
+        (0.6666666666666666, 1000, {'accuracy_teacher': 0.9, 'accuracy_agent': 1.0})
+    """
+    teacher = read_scalar(run_dir, "d/accuracy_teacher")
+    if not teacher:
+        return None
+    agent = dict(read_scalar(run_dir, "d/accuracy_agent"))
+    saturated = [frame for frame, value in teacher if value >= D_SATURATED and agent.get(frame, 0.0) >= D_SATURATED]
+    skipped = [value for _, value in read_scalar(run_dir, "d/skipped")]
+    last = {}
+    for name in _D_LAST:
+        rows = read_scalar(run_dir, f"d/{name}")
+        if rows:
+            last[name] = rows[-1][1]
+    return {
+        "saturated_fraction": len(saturated) / len(teacher),
+        "last_saturated_frame": saturated[-1] if saturated else None,
+        "skipped_fraction": sum(skipped) / len(skipped) if skipped else None,
+        "last": last,
+    }
 
 
 def read_scalar(run_dir: Path, tag: str) -> list[tuple[int, float]]:

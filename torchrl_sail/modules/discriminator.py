@@ -176,6 +176,13 @@ class DiscriminatorNet(nn.Module):
             :class:`RunningObsNorm` (attribute ``obs_norm``). If ``False``,
             ``obs_norm`` is ``None`` and observations are used as they are. Defaults
             to ``True``.
+        spectral_norm (bool, optional): divide every linear layer's weight by its largest
+            singular value (Miyato et al.'s spectral normalisation, torch's
+            ``nn.utils.parametrizations.spectral_norm``), which bounds how steep the logit can
+            get and so how fast D saturates. The estimate is one power iteration per forward
+            in training mode (a buffer, saved with the weights), so with it a forward in
+            training mode is no longer free of side effects; in eval mode it is. Not the
+            authors' (they have none). Defaults to ``False``.
 
     Examples:
         >>> import torch
@@ -198,6 +205,7 @@ class DiscriminatorNet(nn.Module):
         num_cells: Sequence[int] = (256, 256),
         activation_class: type[nn.Module] = nn.Tanh,
         normalize_observations: bool = True,
+        spectral_norm: bool = False,
     ) -> None:
         super().__init__()
         self.observation_dim = observation_dim
@@ -209,18 +217,26 @@ class DiscriminatorNet(nn.Module):
             num_cells=list(num_cells),
             activation_class=activation_class,
         )
+        self.spectral_norm = spectral_norm
         self.reset_parameters()
+        if spectral_norm:
+            for layer in self.mlp.modules():
+                if isinstance(layer, nn.Linear):
+                    nn.utils.parametrizations.spectral_norm(layer)
 
     def reset_parameters(self) -> None:
         """Re-initialises the MLP with Glorot-uniform weights and zero biases (authors' init).
 
-        The normaliser statistics are left untouched.
+        With ``spectral_norm``, the raw weights are re-initialised (the normalisation divides
+        them again). The normaliser statistics are left untouched.
         """
-        for layer in self.mlp.modules():
-            if isinstance(layer, nn.Linear):
-                nn.init.xavier_uniform_(layer.weight)
-                if layer.bias is not None:
-                    nn.init.zeros_(layer.bias)
+        with torch.no_grad():
+            for layer in self.mlp.modules():
+                if isinstance(layer, nn.Linear):
+                    parametrized = nn.utils.parametrize.is_parametrized(layer, "weight")
+                    nn.init.xavier_uniform_(layer.parametrizations.weight.original if parametrized else layer.weight)
+                    if layer.bias is not None:
+                        nn.init.zeros_(layer.bias)
 
     @property
     def dtype(self) -> torch.dtype:
@@ -278,7 +294,7 @@ class Discriminator(TensorDictModule):
         out_key (NestedKey, optional): where the logit is written. Defaults to
             ``"d_logit"``.
         **net_kwargs: forwarded to :class:`DiscriminatorNet` (``num_cells``,
-            ``activation_class``, ``normalize_observations``).
+            ``activation_class``, ``normalize_observations``, ``spectral_norm``).
 
     Examples:
         >>> import torch

@@ -96,6 +96,16 @@ class DiscriminatorLoss(LossModule):
             ``loss.entropy_coef = 0.05``.
         gp_coef (float, optional): weight of the gradient penalty. Defaults to
             ``10.0`` (the authors' value). Schedulable: ``loss.gp_coef = 5.0``.
+        label_smoothing (float, optional): one-sided label smoothing (Salimans et al.): the
+            teacher rows' BCE target is ``1 - label_smoothing``, the agent rows' stays 0, so
+            D is not pushed to an infinite teacher logit. In ``[0, 0.5)``. Defaults to ``0.0``
+            (none, the authors'). Schedulable.
+        instance_noise (float, optional): standard deviation of Gaussian noise added to the
+            features (normalised observation and action) of every row before the BCE and
+            entropy terms, in training mode (Sønderby et al.'s instance noise): it blurs the
+            two distributions so that D cannot separate them perfectly. The gradient penalty
+            is taken on the clean features. Defaults to ``0.0`` (none, the authors').
+            Schedulable, e.g. annealed to 0.
         update_obs_norm (bool, optional): update the discriminator's running
             observation statistics with each training batch. Defaults to ``True``.
 
@@ -105,7 +115,9 @@ class DiscriminatorLoss(LossModule):
     ``σ(ℓ) > 0.5``), ``accuracy_agent`` (fraction of agent rows with ``σ(ℓ) < 0.5``),
     ``d_teacher``/``d_agent`` (mean ``σ(ℓ)``), ``entropy`` (mean ``H``),
     ``grad_penalty`` (raw GP) and ``reward_teacher``/``reward_agent`` (mean
-    ``softplus(ℓ) = -log(1 - σ(ℓ))``, the critic's reward).
+    ``softplus(ℓ) = -log(1 - σ(ℓ))``, the critic's reward), ``reward_teacher_std`` /
+    ``reward_agent_std`` (their spread over the rows) and ``logit_teacher`` / ``logit_agent``
+    (mean logits: how far past saturation D is), all on the clean features.
 
     This class is compatible with non-tensordict based modules too: the entries can
     be passed as keyword arguments named after :attr:`in_keys` and the outputs come
@@ -162,9 +174,11 @@ class DiscriminatorLoss(LossModule):
     tensor_keys: _AcceptedKeys
     default_keys = _AcceptedKeys
 
-    _schedulable_buffers = frozenset({"entropy_coef", "gp_coef"})
+    _schedulable_buffers = frozenset({"entropy_coef", "gp_coef", "label_smoothing", "instance_noise"})
     entropy_coef: torch.Tensor
     gp_coef: torch.Tensor
+    label_smoothing: torch.Tensor
+    instance_noise: torch.Tensor
 
     out_keys = [
         "loss_discriminator",
@@ -178,6 +192,10 @@ class DiscriminatorLoss(LossModule):
         "grad_penalty",
         "reward_teacher",
         "reward_agent",
+        "reward_teacher_std",
+        "reward_agent_std",
+        "logit_teacher",
+        "logit_agent",
     ]
 
     def __init__(
@@ -186,8 +204,14 @@ class DiscriminatorLoss(LossModule):
         *,
         entropy_coef: float = 0.01,
         gp_coef: float = 10.0,
+        label_smoothing: float = 0.0,
+        instance_noise: float = 0.0,
         update_obs_norm: bool = True,
     ) -> None:
+        if not 0.0 <= label_smoothing < 0.5:
+            raise ValueError(f"label_smoothing must be in [0, 0.5), got {label_smoothing!r}.")
+        if not 0.0 <= instance_noise < float("inf"):
+            raise ValueError(f"instance_noise must be a finite number >= 0, got {instance_noise!r}.")
         self._in_keys = None
         super().__init__()
         self.discriminator = discriminator
@@ -195,6 +219,8 @@ class DiscriminatorLoss(LossModule):
         self._set_in_keys()
         self.register_coeff_buffer("entropy_coef", entropy_coef, dtype=torch.float32)
         self.register_coeff_buffer("gp_coef", gp_coef, dtype=torch.float32)
+        self.register_coeff_buffer("label_smoothing", label_smoothing, dtype=torch.float32)
+        self.register_coeff_buffer("instance_noise", instance_noise, dtype=torch.float32)
         self.update_obs_norm = update_obs_norm
 
     @property
@@ -258,19 +284,26 @@ class DiscriminatorLoss(LossModule):
             net.obs_norm.update(obs)
 
         features = net.features(obs, act)
-        logits = net.head(features)
+        noisy = self.training and bool(self.instance_noise > 0)
+        logits = net.head(features + self.instance_noise * torch.randn_like(features) if noisy else features)
         logits_teacher = logits[tag]
         logits_agent = logits[~tag]
 
+        target_teacher = (1.0 - self.label_smoothing).to(logits.dtype).expand_as(logits_teacher)
         loss_bce = F.binary_cross_entropy_with_logits(
-            logits_teacher, torch.ones_like(logits_teacher)
+            logits_teacher, target_teacher
         ) + F.binary_cross_entropy_with_logits(logits_agent, torch.zeros_like(logits_agent))
         entropy = _bernoulli_entropy(logits).mean()
         grad_penalty = self._gradient_penalty(features[tag], features[~tag])
 
         with torch.no_grad():
+            if noisy:  # the diagnostics describe D itself, on the clean features
+                clean = net.head(features)
+                logits_teacher, logits_agent = clean[tag], clean[~tag]
             p_teacher = torch.sigmoid(logits_teacher)
             p_agent = torch.sigmoid(logits_agent)
+            reward_teacher = F.softplus(logits_teacher)
+            reward_agent = F.softplus(logits_agent)
             metadata = {
                 "accuracy_teacher": (p_teacher > 0.5).float().mean(),
                 "accuracy_agent": (p_agent < 0.5).float().mean(),
@@ -278,8 +311,12 @@ class DiscriminatorLoss(LossModule):
                 "d_agent": p_agent.mean(),
                 "entropy": entropy.detach(),
                 "grad_penalty": grad_penalty.detach(),
-                "reward_teacher": F.softplus(logits_teacher).mean(),
-                "reward_agent": F.softplus(logits_agent).mean(),
+                "reward_teacher": reward_teacher.mean(),
+                "reward_agent": reward_agent.mean(),
+                "reward_teacher_std": reward_teacher.std(correction=0),
+                "reward_agent_std": reward_agent.std(correction=0),
+                "logit_teacher": logits_teacher.mean(),
+                "logit_agent": logits_agent.mean(),
             }
         return TensorDict(
             {
