@@ -39,7 +39,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "examples"))
 
 from config_schema import register_config_schema  # noqa: E402
-from utils import make_agent, make_collector, make_env  # noqa: E402
+from utils import env_kwargs, make_agent, make_collector, make_env  # noqa: E402
 
 
 def parse_args(argv=None) -> argparse.Namespace:
@@ -100,12 +100,12 @@ def time_collector(cfg, env, policy, frames: int) -> float:
     return elapsed * frames / collected
 
 
-def partial_stacks(env) -> dict[str, TransformedEnv]:
+def partial_stacks(cfg, env) -> dict[str, TransformedEnv]:
     """``GymEnv`` under the first k transforms of ``env``'s stack (copies), for k = 1 .. all but the last."""
     transforms = list(env.transform)
     return {
         f"+ {type(transforms[k - 1]).__name__}": TransformedEnv(
-            GymEnv(env.base_env._env.spec.id, device=env.base_env.device),
+            GymEnv(cfg.env.name, device=env.base_env.device, **env_kwargs(cfg)),
             Compose(*[t.clone() for t in transforms[:k]]),
         )
         for k in range(1, len(transforms))
@@ -117,7 +117,7 @@ def measure(args) -> dict[str, list[float]]:
     cfg = example_config(args.env, f"collector.total_frames={2 * args.frames + 10_000} {overrides}")
     env = make_env(cfg, 0)
     _, _, policy = make_agent(cfg, env)
-    partial = partial_stacks(env) if args.per_transform else {}
+    partial = partial_stacks(cfg, env) if args.per_transform else {}
     # the full stack is the "env stack" layer: named after its last transform with --per-transform
     stack = f"+ {type(env.transform[-1]).__name__} (env stack)" if args.per_transform else "env stack"
     layers = ["gymnasium", "GymEnv", *partial, stack, "+ policy", "Collector"]

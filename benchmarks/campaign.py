@@ -141,7 +141,7 @@ def plan() -> list[Cell]:
 
 def device_of(overrides: list[str]) -> str:
     """The torch device that ``--overrides`` give the runs (the example's default: ``cpu``)."""
-    devices = [item.split("=", 1)[1] for item in overrides if item.startswith("device=")]
+    devices = [item.split("=", 1)[1] for item in overrides if item.lstrip("+").startswith("device=")]
     return devices[-1] if devices else "cpu"
 
 

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import hydra
 import torch
-from config_schema import register_config_schema
+from config_schema import SAILConfig, register_config_schema
 from omegaconf import OmegaConf
 from run_utils import evaluate_episodes, seed_everything
 from torchrl.checkpoint import Checkpoint
@@ -56,7 +56,11 @@ def load_run(run_dir: Path):
         )
     run = {}
     Checkpoint(run=run).load(checkpoint, components=["run"])
-    return OmegaConf.load(config), run
+    # over the schema's defaults: a run saved before a setting existed gets its default (and keys
+    # since removed are kept, unread)
+    defaults = OmegaConf.structured(SAILConfig)
+    OmegaConf.set_struct(defaults, False)
+    return OmegaConf.merge(defaults, OmegaConf.load(config)), run
 
 
 def load_actor(cfg, env, checkpoint: Path):

@@ -58,7 +58,7 @@ from torchrl.objectives import ClipPPOLoss, group_optimizers
 from torchrl.objectives.value import GAE
 from utils import (
     copy_observation_norm,
-    discriminator_step,
+    discriminator_block,
     make_discriminator,
     make_discriminator_loss,
     make_env,
@@ -182,10 +182,9 @@ def main(cfg):  # noqa: F821
         # raw observations (not the policy's normalised ones): D compares them with the teacher's
         on_policy.extend(data.reshape(-1).select(*TRANSITION_KEYS))
         # D: one pass over the batch's rows, each step against as many teacher rows
-        for batch in d_batches.sample(
-            2 * d.batch_size, teacher_fraction=0.5, num_batches=max(1, data.numel() // d.batch_size)
-        ).unbind(0):
-            metrics.update(discriminator_step(cfg, d_loss, optimizers["discriminator"], batch))
+        steps = max(1, data.numel() // d.batch_size)
+        d_block = d_batches.sample(2 * d.batch_size, teacher_fraction=0.5, num_batches=steps)
+        metrics.update(discriminator_block(cfg, d_loss, optimizers["discriminator"], d_block))
         if shaped:
             reward.coef = metrics["pofd/lambda_1"] = pofd_lambda(r.coef, r.coef_decay, before // p.frames_per_batch)
         data = reward(data)  # the updated D's reward (gail: replaces the delayed env reward; pofd: shapes it)

@@ -46,7 +46,7 @@ from run_utils import (
 from torchrl.checkpoint import Checkpoint, GlobalRNGState
 from utils import (
     FilledRows,
-    discriminator_step,
+    discriminator_block,
     make_absorbing,
     make_agent,
     make_collector,
@@ -227,14 +227,12 @@ def main(cfg):  # noqa: F821
             if num_d_steps:
                 with timeit("sample"):
                     d_block = d_batches.sample(2 * d.batch_size, teacher_fraction=0.5, num_batches=num_d_steps)
-                skipped = 0.0
-                for batch in d_block.unbind(0):
-                    with timeit("discriminator"):
-                        metrics.update(discriminator_step(cfg, d_loss, optimizers["discriminator"], batch))
-                        skipped += metrics["d/skipped"]
-                        if rnd is not None:
-                            metrics.update(rnd_update(batch))
-                metrics["d/skipped"] = skipped / num_d_steps  # the block's share of skipped D steps
+                with timeit("discriminator"):
+                    metrics.update(
+                        discriminator_block(
+                            cfg, d_loss, optimizers["discriminator"], d_block, rnd_update if rnd is not None else None
+                        )
+                    )
             # NaN/inf stops the run here, at the logging cadence (and before any checkpoint), before
             # the weights reach the workers, an evaluation or a log.
             log_now = frames - last_log >= cfg.logger.log_every_frames or crossings(

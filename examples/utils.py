@@ -311,7 +311,7 @@ def make_discriminator_loss(cfg: DictConfig, discriminator: Discriminator) -> Di
         gp_coef=d.gp_coef,
         label_smoothing=d.label_smoothing,
         instance_noise=d.instance_noise,
-    )
+    ).to(cfg.device)
 
 
 def discriminator_step(cfg: DictConfig, d_loss: DiscriminatorLoss, optimizer, batch) -> dict:
@@ -325,6 +325,20 @@ def discriminator_step(cfg: DictConfig, d_loss: DiscriminatorLoss, optimizer, ba
         optimizer.step()
         optimizer.zero_grad(set_to_none=True)
     return {**{f"d/{key}": value.detach() for key, value in out.items()}, "d/skipped": float(skip)}
+
+
+def discriminator_block(cfg: DictConfig, d_loss: DiscriminatorLoss, optimizer, batches, after_step=None) -> dict:
+    """D's steps on a sampled block (``batches``: ``[steps, rows]``): the last step's ``d/*`` metrics, with
+    ``d/skipped`` the block's share of skipped steps. ``after_step(batch)`` runs after each D step (RND's
+    predictor learns from the same rows) and its metrics are returned too."""
+    metrics, skipped = {}, 0.0
+    for batch in batches.unbind(0):
+        metrics.update(discriminator_step(cfg, d_loss, optimizer, batch))
+        skipped += metrics["d/skipped"]
+        if after_step is not None:
+            metrics.update(after_step(batch))
+    metrics["d/skipped"] = skipped / batches.shape[0]
+    return metrics
 
 
 def make_reward(cfg: DictConfig, discriminator: Discriminator, rnd: RNDReward | None = None, **kwargs):

@@ -68,6 +68,7 @@ def test_precision_stage_needs_bf16_hardware_and_takes_overrides(tmp_path, monke
     assert campaign.main([*args, "--overrides", "device=cuda", "optim.cudagraphs=true", "--jobs", "1"]) == 0
     assert len(launched) == 6
     assert all(cmd[-3:-1] == ["device=cuda", "optim.cudagraphs=true"] for cmd in launched)
+    assert campaign.device_of(["++device=cuda:1"]) == "cuda:1" and campaign.device_of([]) == "cpu"
     assert "optim.precision=bf16" in launched[1]
     assert launched[1][-1].endswith("precision/paper-bf16/Hopper-v4/sail/seed0")
 

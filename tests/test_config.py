@@ -276,5 +276,5 @@ def test_discriminator_remedies_reach_the_loss_the_net_and_the_step():
     assert (out["d/accuracy_teacher"] + out["d/accuracy_agent"]).item() / 2 > 0.9
     before = raw_weights()
     assert discriminator_step(cfg, d_loss, optimizer, batch(3.0))["d/skipped"] == 1.0
-    assert all(torch.equal(a, b) for a, b in zip(before, raw_weights()))  # a skipped step changes nothing
+    assert all(torch.equal(a, b) for a, b in zip(before, raw_weights()))  # a skipped step changes no parameter
     assert all(p.grad is None for p in discriminator.parameters())

@@ -169,24 +169,36 @@ class TestDiscriminatorNet:
         torch.manual_seed(0)
         net = DiscriminatorNet(5, 2, num_cells=(16, 16), spectral_norm=True)
         obs, act = torch.randn(64, 5), torch.rand(64, 2)
-        for _ in range(30):  # one power iteration per forward in training mode
-            net(obs, act)
         linears = [m for m in net.mlp.modules() if isinstance(m, nn.Linear)]
         assert len(linears) == 3
-        for layer in linears:
-            # the effective weight's largest singular value is 1; the raw one is not
-            assert torch.linalg.matrix_norm(layer.weight.detach(), 2).item() == pytest.approx(1.0, abs=1e-3)
-            assert torch.linalg.matrix_norm(layer.parametrizations.weight.original.detach(), 2).item() > 1.1
-        # eval mode: a pure function (no power iteration), saved and loaded with the weights
-        net.eval()
+
+        def singular_values(weights):
+            return [torch.linalg.matrix_norm(w.detach(), 2).item() for w in weights]
+
+        # a plain forward, in training mode too, is pure: the singular vectors do not move
+        vectors = {k: v.clone() for k, v in net.state_dict().items() if k.endswith(("_u", "_v"))}
+        assert len(vectors) == 6
+        net.train()
+        net(obs, act)
+        assert all(torch.equal(net.state_dict()[k], v) for k, v in vectors.items())
+        with net.spectral_norm_iteration():
+            for _ in range(30):  # one power iteration per forward in the context
+                net(obs, act)
+        assert not torch.equal(net.state_dict()[next(iter(vectors))], next(iter(vectors.values())))
+        # the effective weights' largest singular value is 1; the raw ones' is not
+        assert singular_values(layer.weight for layer in linears) == pytest.approx([1.0] * 3, abs=1e-3)
+        assert min(singular_values(layer.parametrizations.weight.original for layer in linears)) > 1.1
+        # saved and loaded with the weights
         before = net(obs, act)
-        assert torch.equal(net(obs, act), before)
         copy = DiscriminatorNet(5, 2, num_cells=(16, 16), spectral_norm=True)
         copy.load_state_dict(net.state_dict())
-        copy.eval()
         assert torch.equal(copy(obs, act), before)
-        net.reset_parameters()  # re-initialises the raw weights
+        # re-initialised: the same parameters, the normalisation estimated afresh on the new weights
+        params = list(net.parameters())
+        net.reset_parameters()
+        assert all(a is b for a, b in zip(params, net.parameters()))
         assert not torch.equal(net(obs, act), before)
+        assert singular_values(layer.weight for layer in linears) == pytest.approx([1.0] * 3, abs=0.05)
 
 
 class TestDiscriminator:
@@ -293,6 +305,34 @@ class TestDiscriminatorLoss:
         assert out["reward_teacher_std"].item() == pytest.approx(std(rt), rel=1e-5)
         assert out["reward_agent_std"].item() == pytest.approx(std(ra), rel=1e-5)
 
+    def test_training_step_advances_spectral_norm_once(self):
+        torch.manual_seed(0)
+        disc = Discriminator(3, 1, num_cells=(8,), spectral_norm=True)
+        loss_fn = DiscriminatorLoss(disc)
+        td = _tagged(torch.randn(6, 3), torch.zeros(6, 1), [1, 0, 1, 0, 1, 0])
+
+        def vectors():
+            return [v.clone() for k, v in disc.state_dict().items() if k.endswith("_v")]
+
+        with torch.no_grad():  # as after optimiser steps: the vectors are no longer converged
+            for layer in (m for m in disc.net.mlp.modules() if isinstance(m, nn.Linear)):
+                layer.parametrizations.weight.original.add_(torch.randn_like(layer.parametrizations.weight.original))
+        start = vectors()
+        loss_fn.eval()
+        loss_fn(td)  # evaluating the loss leaves D's normalisation as it is
+        assert all(torch.equal(a, b) for a, b in zip(start, vectors()))
+        loss_fn.train()
+        loss_fn(td)
+        after_one = vectors()
+        assert all(not torch.equal(a, b) for a, b in zip(start, after_one))
+        # one iteration per step, whatever the step computes besides (penalty, diagnostics): from the
+        # same v (the iteration computes u from v, then v from u), one head call gives the same vectors
+        v_keys = [k for k in disc.state_dict() if k.endswith("_v")]
+        disc.load_state_dict({**disc.state_dict(), **dict(zip(v_keys, start))})
+        with disc.net.spectral_norm_iteration():
+            disc.net.head(disc.net.features(td["observation"], td["action"]))
+        assert all(torch.equal(a, b) for a, b in zip(after_one, vectors()))
+
     def test_label_smoothing_by_hand(self):
         # teacher targets 1 - 0.2: BCE(z, 0.8) = softplus(-z) + 0.2 * z; agent targets stay 0
         disc = _linear_disc([3.0, 4.0, 0.0, 0.0])
@@ -328,7 +368,8 @@ class TestDiscriminatorLoss:
         softplus = lambda x: math.log1p(math.exp(x))  # noqa: E731
         bce = (softplus(-z[0]) + softplus(-z[2])) / 2 + (softplus(z[1]) + softplus(z[3])) / 2
         assert out["loss_discriminator"].item() == pytest.approx(bce, rel=1e-5)
-        # the diagnostics and the penalty use the clean features: logits [3, -2.5, -5, 0], |grad| = 5
+        # the diagnostics (all but the entropy term) and the penalty use the clean features:
+        # logits [3, -2.5, -5, 0], |grad| = 5
         assert out["logit_teacher"].item() == pytest.approx(-1.0, rel=1e-6)
         assert out["accuracy_agent"].item() == pytest.approx(0.5)
         assert out["grad_penalty"].item() == pytest.approx(16.0, rel=1e-6)
@@ -468,6 +509,11 @@ class TestDiscriminatorLoss:
         assert out["loss_entropy"].item() == pytest.approx(-0.5 * out["entropy"].item())
         assert out["loss_gradient_penalty"].item() == pytest.approx(32.0, rel=1e-6)
         assert loss_fn.gp_coef.dtype == torch.float32
+        # a state dict saved before label_smoothing and instance_noise existed loads, strictly
+        older = {k: v for k, v in loss_fn.state_dict().items() if k not in ("label_smoothing", "instance_noise")}
+        fresh = DiscriminatorLoss(_linear_disc([3.0, 4.0, 0.0, 0.0]), label_smoothing=0.1)
+        fresh.load_state_dict(older)
+        assert fresh.gp_coef.item() == 2.0 and fresh.label_smoothing.item() == pytest.approx(0.1)
 
     def test_keys(self):
         disc = Discriminator(3, 1, num_cells=(8,), in_keys=["obs", "act"])

@@ -107,6 +107,29 @@ def test_evaluate_bad_run_dir(tmp_path):
         load_run(tmp_path)
 
 
+def test_evaluate_reads_a_config_saved_before_newer_settings(tmp_path):
+    from torchrl.checkpoint import Checkpoint
+
+    sys.path.insert(0, str(REPO / "examples"))
+    from evaluate import load_run
+    from utils import make_discriminator, make_discriminator_loss
+
+    from torchrl_sail import make_sail_env
+    from torchrl_sail.runs import checkpoint_dir
+
+    # a run saved before the discriminator remedies existed: its config has none of their keys
+    saved = REPO / "benchmarks" / "results" / "campaign" / "main" / "paper" / "Hopper-v4" / "sail" / "seed0"
+    old = (saved / "config.yaml").read_text()
+    assert "label_smoothing" not in old and "discriminator_spectral_norm" not in old
+    (tmp_path / "config.yaml").write_text(old)
+    Checkpoint(run={"frames": 1000}).save(checkpoint_dir(tmp_path))
+    cfg, run = load_run(tmp_path)
+    assert run["frames"] == 1000 and cfg.env.name == "Hopper-v4" and cfg.seed == 0
+    assert cfg.network.discriminator_spectral_norm is False and cfg.optim.discriminator.max_accuracy is None
+    discriminator = make_discriminator(cfg, make_sail_env("Hopper-v4"))  # what load_actor builds
+    assert make_discriminator_loss(cfg, discriminator).label_smoothing.item() == 0.0
+
+
 def test_evaluate_exports_the_agents_episodes_to_minari(trained, tmp_path):
     pytest.importorskip("minari", reason="Minari export needs pip install -e '.[minari]'")
     from torchrl_sail import load_demonstrations

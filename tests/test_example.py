@@ -109,6 +109,7 @@ def test_discriminator_remedies_run_and_skip(tmp_path, teacher_dir):
     )
     skipped = read_scalar(run_dir, "d/skipped")
     assert skipped and all(0.0 <= value <= 1.0 for _, value in skipped)
+    assert any(value > 0 for _, value in skipped)  # D above chance on a batch: its step was skipped
     summary = json.loads((run_dir / "summary.json").read_text())
     assert summary["discriminator"]["skipped_fraction"] == pytest.approx(sum(v for _, v in skipped) / len(skipped))
     state = saved(run_dir, "discriminator")["discriminator"]

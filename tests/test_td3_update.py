@@ -497,17 +497,6 @@ class TestTD3Update:
         with pytest.raises(ValueError, match="needs implementation='fused'"):
             make_update(make_loss(UNIT), "loss", precision="bf16")
 
-    def test_bf16_warns_without_bf16_hardware(self, monkeypatch):
-        import torchrl_sail.objectives.td3_update as td3_update
-
-        monkeypatch.setattr(td3_update, "native_bf16_matmul", lambda device: False)
-        with pytest.warns(UserWarning, match="precision='bf16' on a cpu without bf16 matrix hardware"):
-            make_update(make_loss(UNIT), "fused", precision="bf16")
-        with warnings.catch_warnings():
-            warnings.simplefilter("error")
-            make_update(make_loss(UNIT), "fused", precision="fp32")  # fp32 has nothing to warn about
-            monkeypatch.setattr(td3_update, "native_bf16_matmul", lambda device: True)
-            make_update(make_loss(UNIT), "fused", precision="bf16")
         td1 = make_loss(UNIT)
         td1.make_value_estimator(gamma=0.9, lmbda=0.9, value_type="tdlambda")
         with pytest.raises(ValueError, match="TD\\(0\\) target"):
@@ -537,6 +526,18 @@ class TestTD3Update:
         ]:
             with pytest.raises(ValueError, match=match):
                 make_update(make_loss(UNIT), "loss", **kwargs)
+
+    def test_bf16_warns_without_bf16_hardware(self, monkeypatch):
+        import torchrl_sail.objectives.td3_update as td3_update
+
+        monkeypatch.setattr(td3_update, "native_bf16_matmul", lambda device: False)
+        with pytest.warns(UserWarning, match="precision='bf16' on a cpu without bf16 matrix hardware"):
+            make_update(make_loss(UNIT), "fused", precision="bf16")
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            make_update(make_loss(UNIT), "fused", precision="fp32")  # fp32 has nothing to warn about
+            monkeypatch.setattr(td3_update, "native_bf16_matmul", lambda device: True)
+            make_update(make_loss(UNIT), "fused", precision="bf16")
 
 
 class _HostReads(TorchFunctionMode):

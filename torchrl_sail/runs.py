@@ -282,8 +282,9 @@ def discriminator_summary(run_dir: Path) -> dict | None:
     From the ``d/*`` scalars (logged at the logging cadence, the last D step before each log):
     ``saturated_fraction``, the share of logged points where D's accuracy is at least
     :data:`D_SATURATED` on both the teacher's and the agent's rows; ``last_saturated_frame``, the
-    last such point (``None``: never); ``skipped_fraction``, the mean of ``d/skipped`` (the share
-    of D steps skipped by ``optim.discriminator.max_accuracy``; ``None`` if not logged); and
+    last such point (``None``: never); ``skipped_fraction``, the mean of ``d/skipped`` (each the
+    share of a logged block's D steps that ``optim.discriminator.max_accuracy`` skipped; ``None``
+    if not logged); and
     ``last``, the last logged accuracy, reward and mean logit on each side. Also reads a results
     copy (``scalars.csv``), as :func:`read_scalar` does.
 

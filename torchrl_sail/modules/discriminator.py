@@ -26,6 +26,7 @@ Three layers, from the inside out:
 from __future__ import annotations
 
 from collections.abc import Sequence
+from contextlib import contextmanager
 
 import torch
 from tensordict.nn import TensorDictModule
@@ -179,10 +180,11 @@ class DiscriminatorNet(nn.Module):
         spectral_norm (bool, optional): divide every linear layer's weight by its largest
             singular value (Miyato et al.'s spectral normalisation, torch's
             ``nn.utils.parametrizations.spectral_norm``), which bounds how steep the logit can
-            get and so how fast D saturates. The estimate is one power iteration per forward
-            in training mode (a buffer, saved with the weights), so with it a forward in
-            training mode is no longer free of side effects; in eval mode it is. Not the
-            authors' (they have none). Defaults to ``False``.
+            get and so how fast D saturates. The singular vectors (buffers, saved with the
+            weights) advance by one power iteration per training step of
+            :class:`~torchrl_sail.DiscriminatorLoss` (:meth:`spectral_norm_iteration`), never in a
+            plain forward, which stays pure. Not the authors' (they have none). Defaults to
+            ``False``.
 
     Examples:
         >>> import torch
@@ -219,24 +221,52 @@ class DiscriminatorNet(nn.Module):
         )
         self.spectral_norm = spectral_norm
         self.reset_parameters()
-        if spectral_norm:
-            for layer in self.mlp.modules():
-                if isinstance(layer, nn.Linear):
-                    nn.utils.parametrizations.spectral_norm(layer)
+
+    def _linears(self) -> list[nn.Linear]:
+        return [layer for layer in self.mlp.modules() if isinstance(layer, nn.Linear)]
+
+    def _spectral_norms(self) -> list[nn.Module]:
+        return [layer.parametrizations.weight for layer in self._linears() if hasattr(layer, "parametrizations")]
 
     def reset_parameters(self) -> None:
         """Re-initialises the MLP with Glorot-uniform weights and zero biases (authors' init).
 
-        With ``spectral_norm``, the raw weights are re-initialised (the normalisation divides
-        them again). The normaliser statistics are left untouched.
+        With ``spectral_norm``, the normalisation is registered again on the new weights (the
+        same parameters), with singular vectors estimated afresh (15 power iterations). The
+        normaliser statistics are left untouched.
         """
         with torch.no_grad():
-            for layer in self.mlp.modules():
-                if isinstance(layer, nn.Linear):
-                    parametrized = nn.utils.parametrize.is_parametrized(layer, "weight")
-                    nn.init.xavier_uniform_(layer.parametrizations.weight.original if parametrized else layer.weight)
-                    if layer.bias is not None:
-                        nn.init.zeros_(layer.bias)
+            for layer in self._linears():
+                if hasattr(layer, "parametrizations"):
+                    nn.utils.parametrize.remove_parametrizations(layer, "weight", leave_parametrized=False)
+                nn.init.xavier_uniform_(layer.weight)
+                if layer.bias is not None:
+                    nn.init.zeros_(layer.bias)
+                if self.spectral_norm:
+                    nn.utils.parametrizations.spectral_norm(layer)
+        self.train(self.training)  # the new normalisations do not iterate in a forward
+
+    def train(self, mode: bool = True) -> DiscriminatorNet:
+        """Sets the training mode; the spectral normalisations stay in eval mode (no power iteration
+        in a forward, see :meth:`spectral_norm_iteration`)."""
+        super().train(mode)
+        for norm in self._spectral_norms():
+            norm.eval()
+        return self
+
+    @contextmanager
+    def spectral_norm_iteration(self):
+        """Within it, each forward advances the spectral normalisations' singular vectors by one power
+        iteration (what torch's ``spectral_norm`` does in training mode). :class:`~torchrl_sail.DiscriminatorLoss`
+        uses it once per training step. A no-op without ``spectral_norm``."""
+        norms = self._spectral_norms()
+        for norm in norms:
+            norm.train()
+        try:
+            yield
+        finally:
+            for norm in norms:
+                norm.eval()
 
     @property
     def dtype(self) -> torch.dtype:

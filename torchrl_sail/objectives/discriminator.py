@@ -17,6 +17,7 @@ discriminator minibatch.
 
 from __future__ import annotations
 
+from contextlib import nullcontext
 from dataclasses import dataclass
 
 import torch
@@ -117,7 +118,8 @@ class DiscriminatorLoss(LossModule):
     ``grad_penalty`` (raw GP) and ``reward_teacher``/``reward_agent`` (mean
     ``softplus(ℓ) = -log(1 - σ(ℓ))``, the critic's reward), ``reward_teacher_std`` /
     ``reward_agent_std`` (their spread over the rows) and ``logit_teacher`` / ``logit_agent``
-    (mean logits: how far past saturation D is), all on the clean features.
+    (mean logits: how far past saturation D is), all on the clean features (``entropy`` is the
+    loss term's, on the noisy ones).
 
     This class is compatible with non-tensordict based modules too: the entries can
     be passed as keyword arguments named after :attr:`in_keys` and the outputs come
@@ -223,6 +225,12 @@ class DiscriminatorLoss(LossModule):
         self.register_coeff_buffer("instance_noise", instance_noise, dtype=torch.float32)
         self.update_obs_norm = update_obs_norm
 
+    def _load_from_state_dict(self, state_dict, prefix, *args, **kwargs) -> None:
+        # a state dict saved before label_smoothing / instance_noise existed: keep this loss's values
+        for name in ("label_smoothing", "instance_noise"):
+            state_dict.setdefault(prefix + name, getattr(self, name))
+        super()._load_from_state_dict(state_dict, prefix, *args, **kwargs)
+
     @property
     def net(self):
         """The :class:`~torchrl_sail.DiscriminatorNet` being trained."""
@@ -285,11 +293,13 @@ class DiscriminatorLoss(LossModule):
 
         features = net.features(obs, act)
         noisy = self.training and bool(self.instance_noise > 0)
-        logits = net.head(features + self.instance_noise * torch.randn_like(features) if noisy else features)
+        # a training step advances D's spectral normalisation (if any) by one power iteration
+        with net.spectral_norm_iteration() if self.training else nullcontext():
+            logits = net.head(features + self.instance_noise * torch.randn_like(features) if noisy else features)
         logits_teacher = logits[tag]
         logits_agent = logits[~tag]
 
-        target_teacher = (1.0 - self.label_smoothing).to(logits.dtype).expand_as(logits_teacher)
+        target_teacher = torch.ones_like(logits_teacher) - self.label_smoothing.to(logits_teacher)
         loss_bce = F.binary_cross_entropy_with_logits(
             logits_teacher, target_teacher
         ) + F.binary_cross_entropy_with_logits(logits_agent, torch.zeros_like(logits_agent))
