@@ -29,6 +29,17 @@ name (``shipped`` for the env's default teacher). Writes to ``--out``:
   seeds, min-max band), the teacher's return dashed, offline methods (one evaluation each, at
   their headline mean) as dotted lines.
 
+Runs of one (env, teacher, method) at different budgets (``collector.total_frames``, e.g. the
+campaign's 300k and 1M SAIL runs) are different cells: their method is shown with the budget,
+``sail (1M)``.
+
+``--readme FILE`` also writes a short results section into ``FILE`` (the README), between the
+lines ``<!-- RESULTS: START -->`` and ``<!-- RESULTS: END -->``, for the runs of one teacher
+(``--readme-teacher``, default ``paper``): the table in the paper's Table 1 format (methods by
+env, the headline mean ± std over seeds, the teacher's return and the paper's SAIL beside them),
+``results_<teacher>.png`` (one panel per env: each method's mean and min-max band over seeds,
+the teacher dashed), the budget, the CPUs, the wall time and the command of every cell.
+
 ``--per-run`` adds a "Runs" section to ``results.md``: per finished run, its eval curve, when it
 first passed the teacher, its best and final evaluation, its best logged training return, when
 alpha switched (first promotion), promotions and the final threshold C, frames/s and peak memory
@@ -49,6 +60,7 @@ import math
 import os
 import re
 import statistics
+import sys
 from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -56,8 +68,10 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from torchrl_sail.runs import read_scalar  # a run's logs/scalars/<tag>.csv, or a results copy's scalars.csv
+from torchrl_sail.runs import read_scalar, write_atomic  # read_scalar: logs/scalars/<tag>.csv or scalars.csv
 
+BENCHMARKS = Path(__file__).resolve().parent
+REPO = BENCHMARKS.parent
 # Display order; methods not listed here come after, alphabetically.
 METHOD_ORDER = (
     "sail",
@@ -74,6 +88,15 @@ METHOD_ORDER = (
     "gail",
     "bc",
 )
+# The paper's Table 1: SAIL at 1M frames, mean ± std over 5 seeds (its -v2 envs; ours are -v4).
+PAPER_SAIL = {
+    "HalfCheetah": (10660.6, 105.5),
+    "Swimmer": (309.5, 3.0),
+    "Hopper": (3302.1, 14.2),
+    "Walker2d": (5868.5, 108.8),
+}
+PAPER_ENVS = tuple(PAPER_SAIL)  # Table 1's column order
+README_START, README_END = "<!-- RESULTS: START -->", "<!-- RESULTS: END -->"
 HEADLINE_EVALS = 5  # the headline figure of a run: the mean of its last 5 evaluations
 HEADLINE = f"last{HEADLINE_EVALS}"  # its CSV column prefix
 SPEC_EVAL_EPISODES = 10  # episodes per evaluation the reporting spec asks for
@@ -431,9 +454,44 @@ def flatten(config: dict, prefix: str = "") -> dict:
 
 
 def sort_methods(methods) -> list[str]:
-    """The display order: ``METHOD_ORDER`` first, then the rest alphabetically."""
+    """The display order: ``METHOD_ORDER`` first, then the rest alphabetically; a method's budgets
+    (``sail (300k)``, ``sail (1M)``) in increasing order."""
     rank = {name: index for index, name in enumerate(METHOD_ORDER)}
-    return sorted(set(methods), key=lambda name: (rank.get(name, len(rank)), name))
+
+    def key(label: str):
+        name, _, budget = label.partition(" (")
+        return rank.get(name, len(rank)), name, parse_frames(budget.rstrip(")")) if budget else 0
+
+    return sorted(set(methods), key=key)
+
+
+def frames_label(frames: int) -> str:
+    """``300000`` -> ``300k``, ``1000000`` -> ``1M``."""
+    if frames % 1_000_000 == 0:
+        return f"{frames // 1_000_000}M"
+    return f"{frames // 1000}k" if frames % 1000 == 0 else str(frames)
+
+
+def parse_frames(label: str) -> int:
+    """The inverse of :func:`frames_label`."""
+    scale = {"k": 1000, "M": 1_000_000}.get(label[-1:], 1)
+    return int(float(label.rstrip("kM")) * scale)
+
+
+def total_frames(run: Run) -> int | None:
+    value = (run.config.get("collector") or {}).get("total_frames")
+    return None if value is None else int(value)
+
+
+def label_budgets(runs: list[Run]) -> None:
+    """Names each run's method with its budget, ``sail (1M)``, where its (env, teacher, method) has
+    runs at several budgets (``collector.total_frames``); the runs of one budget then group apart."""
+    budgets = defaultdict(set)
+    for run in runs:
+        budgets[run.env, run.teacher, run.method].add(total_frames(run))
+    for run in runs:
+        if len(budgets[run.env, run.teacher, run.method]) > 1 and total_frames(run) is not None:
+            run.method = f"{run.method} ({frames_label(total_frames(run))})"
 
 
 def ordered_pairs(groups: dict) -> list[tuple[str, str]]:
@@ -686,18 +744,179 @@ def headline_notes(group: Group) -> list[str]:
     return notes
 
 
+def paper_env(env: str) -> str:
+    """Table 1's name of a gymnasium id: ``Hopper-v4`` -> ``Hopper``."""
+    return env.split("-v")[0]
+
+
+def readme_envs(groups: dict, teacher: str) -> list[str]:
+    """The envs with runs of ``teacher``, in Table 1's order (others after, alphabetically)."""
+    envs = {env for env, label, _ in groups if label == teacher}
+    rank = {name: index for index, name in enumerate(PAPER_ENVS)}
+    return sorted(envs, key=lambda env: (rank.get(paper_env(env), len(rank)), env))
+
+
+def plot_panels(path: Path, teacher: str, envs: list[str], groups: dict) -> None:
+    """One panel per env: each method's mean eval return over seeds with a min-max band, the teacher dashed."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    methods = sort_methods(method for (env, label, method) in groups if label == teacher)
+    colours = {method: plt.get_cmap("tab10")(index % 10) for index, method in enumerate(methods)}
+    columns = min(2, len(envs))
+    rows_ = math.ceil(len(envs) / columns)
+    fig, axes = plt.subplots(rows_, columns, figsize=(5.5 * columns, 3.6 * rows_), squeeze=False)
+    for ax, env in zip(axes.flat, envs):
+        panel = pair_groups(groups, env, teacher)
+        for group in panel:
+            colour, n = colours[group.method], len(group.runs)
+            if group.offline:
+                ax.axhline(statistics.fmean(group.values), ls=":", c=colour, label=f"{group.method} (offline, n={n})")
+                continue
+            frames, values = aligned_curves(group.runs)
+            if len(frames):
+                ax.plot(frames, values.mean(axis=0), c=colour, label=f"{group.method} (n={n})")
+                if n > 1:
+                    ax.fill_between(frames, values.min(axis=0), values.max(axis=0), color=colour, alpha=0.2, lw=0)
+        if panel and panel[0].teacher_return is not None:
+            ax.axhline(panel[0].teacher_return, ls="--", c="gray", label=f"teacher ({panel[0].teacher_return:.0f})")
+        ax.set_title(env, fontsize=10)
+        ax.set(xlabel="environment frames", ylabel="eval return")
+        ax.legend(loc="best", fontsize=7)
+    for ax in list(axes.flat)[len(envs) :]:
+        ax.set_visible(False)
+    fig.suptitle(f"teacher: {teacher}; mean over seeds, band: min to max", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def readme_cell(group: Group | None) -> str:
+    if group is None:
+        return "-"
+    stats = group.stats()
+    if stats["n_seeds"] == 1:
+        return f"{fmt(stats['headline_mean'])} (1 seed)"
+    return f"{fmt(stats['headline_mean'])} ± {fmt(stats['headline_std'])} ({stats['n_seeds']} seeds)"
+
+
+def cell_command(group: Group) -> str:
+    """The training command of a group's runs, from their config (seeds as ``<0|1|2>``)."""
+    if str(BENCHMARKS) not in sys.path:
+        sys.path.insert(0, str(BENCHMARKS))
+    from run_matrix import script_for  # puts examples/ on sys.path
+
+    run = group.runs[0]
+    config = run.config
+    method = group.method.partition(" (")[0]
+    seeds = "|".join(str(seed) for seed in sorted(r.seed for r in group.runs))
+    teacher = (config.get("teacher") or {}).get("path")
+    args = [
+        f"python {script_for(method).relative_to(REPO)}",
+        f"algo={method}",
+        f"env={run.env}",
+        f"seed=<{seeds}>" if len(group.runs) > 1 else f"seed={seeds}",
+        f"collector.total_frames={total_frames(run)}",
+        f"threads={config.get('threads')}",
+        f"eval.episodes={(config.get('eval') or {}).get('episodes')}",
+        f"eval.every_frames={(config.get('eval') or {}).get('every_frames')}",
+        *([f"teacher.path=<teachers>/{Path(teacher).name}"] if teacher else []),
+    ]
+    return " ".join(args)
+
+
+def readme_section(groups: dict, teacher: str, figure: str) -> str:
+    """The README's results section for the runs of ``teacher`` (see the module docstring)."""
+    envs = readme_envs(groups, teacher)
+    methods = sort_methods(method for (env, label, method) in groups if label == teacher)
+    header = "| method | " + " | ".join(envs) + " |"
+    lines = [header, "|---" * (len(envs) + 1) + "|"]
+    for method in methods:
+        cells = [readme_cell(groups.get((env, teacher, method))) for env in envs]
+        lines.append(f"| {method} | " + " | ".join(cells) + " |")
+    teachers = [
+        next((g.teacher_return for (e, t, _), g in groups.items() if (e, t) == (env, teacher)), None) for env in envs
+    ]
+    lines.append("| teacher | " + " | ".join(fmt(value) for value in teachers) + " |")
+    paper = [PAPER_SAIL.get(paper_env(env)) for env in envs]
+    lines.append(
+        "| SAIL in the paper (1M frames, -v2 envs) | "
+        + " | ".join("-" if value is None else f"{value[0]} ± {value[1]}" for value in paper)
+        + " |"
+    )
+    runs = [run for (e, t, _), group in groups.items() if t == teacher for run in group.runs]
+    budgets = sorted({total_frames(run) for run in runs if not run.offline and total_frames(run)})
+    cpus = sorted({((run.summary or {}).get("provenance") or {}).get("cpu_model") or "unknown" for run in runs})
+    threads = sorted({((run.summary or {}).get("provenance") or {}).get("torch_threads") for run in runs} - {None})
+    hours = sum(
+        total_frames(run) / run.summary["frames_per_second"] / 3600
+        for run in runs
+        if not run.offline and (run.summary or {}).get("frames_per_second")
+    )
+    commands = [cell_command(group) for env in envs for group in pair_groups(groups, env, teacher)]
+    text = [
+        README_START,
+        "",
+        "Per run, the mean of its last 5 deterministic evaluations (10 episodes each); per cell, the mean ± std",
+        f"over seeds. Budget per run: {', '.join(frames_label(b) + ' frames' for b in budgets)}. CPUs: "
+        f"{', '.join(cpus)}, {'/'.join(map(str, threads))} torch thread per run; wall time about {hours:.0f} h "
+        "in all (estimated: each run's frames over its frames per second).",
+        "",
+        *lines,
+        "",
+        f"![Evaluation return against frames, one panel per env]({figure})",
+        "",
+        "<details><summary>The command of each cell</summary>",
+        "",
+        "```bash",
+        *commands,
+        "```",
+        "",
+        "</details>",
+        "",
+        README_END,
+    ]
+    return "\n".join(text)
+
+
+def write_readme(readme: Path, out: Path, groups: dict, teacher: str) -> None:
+    """Replaces the lines between ``README_START`` and ``README_END`` in ``readme`` (both must be there)."""
+    text = readme.read_text()
+    if README_START not in text or README_END not in text:
+        raise ValueError(f"{readme} lacks the lines {README_START} and {README_END} around its results section")
+    figure = out / f"results_{safe_name(teacher)}.png"
+    envs = readme_envs(groups, teacher)
+    if not envs:
+        raise ValueError(f"no finished run with teacher {teacher!r} for {readme}'s results section")
+    plot_panels(figure, teacher, envs, groups)
+    start, end = text.index(README_START), text.index(README_END) + len(README_END)
+    link = os.path.relpath(figure.resolve(), readme.resolve().parent)
+    write_atomic(readme, text[:start] + readme_section(groups, teacher, link) + text[end:])
+
+
 def safe_name(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.+-]+", "_", text)
 
 
 def aggregate(
-    roots: list[Path], out: Path, expect_methods: list[str] = (), expect_seeds: list[int] = (), per_run: bool = False
+    roots: list[Path],
+    out: Path,
+    expect_methods: list[str] = (),
+    expect_seeds: list[int] = (),
+    per_run: bool = False,
+    readme: Path | None = None,
+    readme_teacher: str = "paper",
 ) -> str:
     """Reads the runs under ``roots``, writes the table, CSV and curves to ``out``; returns the Markdown
-    (with ``per_run``, each finished run's :func:`run_details` after it)."""
+    (with ``per_run``, each finished run's :func:`run_details` after it). With ``readme``, also its
+    results section (:func:`write_readme`)."""
     runs = [load_run(folder) for folder in find_run_folders(roots)]
+    missing = missing_runs(runs, roots, list(expect_methods), list(expect_seeds))  # by the matrices' names
+    label_budgets(runs)
     groups, left_out = group_runs(runs)
-    left_out = missing_runs(runs, roots, list(expect_methods), list(expect_seeds)) + left_out
+    left_out = missing + left_out
     notes = []
     for group in groups.values():
         notes += headline_notes(group)
@@ -729,6 +948,8 @@ def aggregate(
     )
     text = markdown(table, left_out, notes, curves, details)
     (out / "results.md").write_text(text)
+    if readme is not None:
+        write_readme(readme, out, groups, readme_teacher)
     return text
 
 
@@ -741,13 +962,24 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         "--expect-seeds", nargs="+", type=int, default=[], help="list these seeds as missing where absent"
     )
     parser.add_argument("--per-run", action="store_true", help="add each finished run's own figures (a Runs section)")
+    parser.add_argument("--readme", type=Path, help="write the results section between its RESULTS markers")
+    parser.add_argument("--readme-teacher", default="paper", help="the teacher label of the README's runs")
     return parser.parse_args(argv)
 
 
 def main(argv: list[str] | None = None) -> None:
     args = parse_args(argv)
     try:
-        print(aggregate(args.roots, args.out, args.expect_methods, args.expect_seeds, args.per_run), end="")
+        text = aggregate(
+            args.roots,
+            args.out,
+            args.expect_methods,
+            args.expect_seeds,
+            args.per_run,
+            readme=args.readme,
+            readme_teacher=args.readme_teacher,
+        )
+        print(text, end="")
     except (FileNotFoundError, ValueError) as err:
         raise SystemExit(f"aggregate.py: {err}") from err
 

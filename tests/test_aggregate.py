@@ -520,3 +520,78 @@ def test_make_teachers_commands_and_labels(tmp_path, capsys):
     with pytest.raises(SystemExit):
         make_teachers.parse_args(["--env", "Hopper-v4", "--budgets", "1000"])
     assert "below eval_every_frames=5000" in capsys.readouterr().err
+
+
+def test_runs_at_two_budgets_are_two_cells_not_duplicates(tmp_path):
+    # the campaign's 300k and 1M SAIL runs: same env, teacher, method and seed, under two stage folders
+    for stage, frames, evals in (("main", 300_000, [10.0] * 5), ("scale", 1_000_000, [90.0] * 5)):
+        out = tmp_path / "campaign" / stage
+        run_matrix.record_matrix(out, [run_matrix.Teacher("paper", tmp_path / "p.npz")], ["sail"], ["Hopper-v4"], [0])
+        write_run(
+            out / "paper" / "Hopper-v4" / "sail" / "seed0",
+            total_frames=frames,
+            frames=frames,
+            evals=frames_curve(evals),
+        )
+    text, rows = run_aggregate([tmp_path / "campaign"], tmp_path / "report")
+    assert list(rows) == [("Hopper-v4", "paper", "sail (300k)"), ("Hopper-v4", "paper", "sail (1M)")]
+    assert float(rows["Hopper-v4", "paper", "sail (1M)"]["last5_mean"]) == 90.0
+    assert "duplicate" not in text and "missing" not in text  # each matrix's cell is there, by its own name
+
+
+def test_readme_section_in_the_papers_format(tmp_path):
+    campaign = tmp_path / "campaign"
+    teachers = [run_matrix.Teacher("paper", tmp_path / "teachers")]
+    run_matrix.record_matrix(campaign, teachers, ["sail", "dac"], ["Hopper-v4", "Swimmer-v4"], [0, 1])
+    for env, method, seed, value in (
+        ("Hopper-v4", "sail", 0, 300.0),
+        ("Hopper-v4", "sail", 1, 500.0),
+        ("Hopper-v4", "dac", 0, 200.0),
+        ("Swimmer-v4", "sail", 0, 100.0),
+    ):
+        folder = write_run(
+            campaign / "paper" / env / method / f"seed{seed}",
+            env=env,
+            algo=method,
+            seed=seed,
+            evals=frames_curve([value] * 5),
+            teacher_path=f"/teachers/{env}.npz",
+            teacher_return=150.0,
+            total_frames=5000,
+            frames=5000,
+            threads=1,
+            eval={"episodes": 10, "every_frames": 1000},
+        )
+        summary = json.loads((folder / "summary.json").read_text())
+        provenance = {"cpu_model": "Test CPU", "torch_threads": 1}
+        (folder / "summary.json").write_text(
+            json.dumps({**summary, "frames_per_second": 5000 / 3600, "provenance": provenance})
+        )
+    readme = tmp_path / "README.md"
+    readme.write_text(
+        "# Project\n\n## Results\n\nBy hand.\n\n<!-- RESULTS: START -->\nold\n<!-- RESULTS: END -->\n\n## Tests\n"
+    )
+    run_aggregate([campaign], tmp_path / "report", readme=readme, readme_teacher="paper")
+    text = readme.read_text()
+    assert text.startswith("# Project\n\n## Results\n\nBy hand.\n\n<!-- RESULTS: START -->") and text.endswith(
+        "<!-- RESULTS: END -->\n\n## Tests\n"
+    )
+    assert "old" not in text
+    # Table 1's order of envs (Swimmer before Hopper); mean ± sample std over seeds; the teacher; the paper's SAIL
+    assert "| method | Swimmer-v4 | Hopper-v4 |" in text
+    assert "| sail | 100.0 (1 seed) | 400.0 ± 141.4 (2 seeds) |" in text
+    assert "| dac | - | 200.0 (1 seed) |" in text
+    assert "| teacher | 150.0 | 150.0 |" in text
+    assert "| SAIL in the paper (1M frames, -v2 envs) | 309.5 ± 3.0 | 3302.1 ± 14.2 |" in text
+    # budget, CPU, threads, wall time (4 runs of 5000 frames at 5000 frames per hour), commands
+    assert "Budget per run: 5k frames. CPUs: Test CPU, 1 torch thread per run; wall time about 4 h" in text
+    assert (
+        "python examples/sail_td3.py algo=sail env=Hopper-v4 seed=<0|1> collector.total_frames=5000 threads=1 "
+        "eval.episodes=10 eval.every_frames=1000 teacher.path=<teachers>/Hopper-v4.npz"
+    ) in text
+    figure = tmp_path / "report" / "results_paper.png"
+    assert figure.read_bytes()[:8] == PNG_MAGIC and "](report/results_paper.png)" in text
+    readme.write_text("no markers\n")
+    with pytest.raises(ValueError, match="lacks the lines <!-- RESULTS: START -->"):
+        run_aggregate([campaign], tmp_path / "report", readme=readme)
+    assert readme.read_text() == "no markers\n"  # nothing written
