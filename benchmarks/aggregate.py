@@ -688,17 +688,11 @@ def aligned_curves(runs: list[Run]) -> tuple[np.ndarray, np.ndarray]:
     return np.array(common, dtype=float), values.reshape(len(runs), len(common))
 
 
-def plot_curves(path: Path, env: str, teacher: str, groups: list[Group]) -> None:
-    """Figure 2 style: mean eval return over seeds with a min-max band per method, the teacher dashed."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    colours = plt.get_cmap("tab20" if len(groups) > 10 else "tab10")
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+def draw_groups(ax, groups: list[Group], colour_of) -> None:
+    """On ``ax``: each group's mean eval return over seeds with a min-max band (offline methods as a
+    dotted level), coloured by ``colour_of(index, group)``, and the teacher's return dashed."""
     for index, group in enumerate(groups):
-        colour, n = colours(index), len(group.runs)
+        colour, n = colour_of(index, group), len(group.runs)
         if group.offline:
             ax.axhline(statistics.fmean(group.values), ls=":", c=colour, label=f"{group.method} (offline, n={n})")
             continue
@@ -711,6 +705,18 @@ def plot_curves(path: Path, env: str, teacher: str, groups: list[Group]) -> None
     teacher_return = groups[0].teacher_return if groups else None
     if teacher_return is not None:
         ax.axhline(teacher_return, ls="--", c="gray", label=f"teacher ({teacher_return:.0f})")
+
+
+def plot_curves(path: Path, env: str, teacher: str, groups: list[Group]) -> None:
+    """Figure 2 style: mean eval return over seeds with a min-max band per method, the teacher dashed."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    colours = plt.get_cmap("tab20" if len(groups) > 10 else "tab10")
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    draw_groups(ax, groups, lambda index, group: colours(index))
     ax.set(xlabel="environment frames", ylabel="eval return (deterministic)")
     ax.set_title(f"{env}, teacher {teacher}\nmean over seeds, band: min to max", fontsize=10)
     ax.legend(loc="best", fontsize=8)
@@ -768,20 +774,8 @@ def plot_panels(path: Path, teacher: str, envs: list[str], groups: dict) -> None
     columns = min(2, len(envs))
     rows_ = math.ceil(len(envs) / columns)
     fig, axes = plt.subplots(rows_, columns, figsize=(5.5 * columns, 3.6 * rows_), squeeze=False)
-    for ax, env in zip(axes.flat, envs):
-        panel = pair_groups(groups, env, teacher)
-        for group in panel:
-            colour, n = colours[group.method], len(group.runs)
-            if group.offline:
-                ax.axhline(statistics.fmean(group.values), ls=":", c=colour, label=f"{group.method} (offline, n={n})")
-                continue
-            frames, values = aligned_curves(group.runs)
-            if len(frames):
-                ax.plot(frames, values.mean(axis=0), c=colour, label=f"{group.method} (n={n})")
-                if n > 1:
-                    ax.fill_between(frames, values.min(axis=0), values.max(axis=0), color=colour, alpha=0.2, lw=0)
-        if panel and panel[0].teacher_return is not None:
-            ax.axhline(panel[0].teacher_return, ls="--", c="gray", label=f"teacher ({panel[0].teacher_return:.0f})")
+    for ax, env in zip(axes.flat, envs):  # a method keeps its colour across the panels
+        draw_groups(ax, pair_groups(groups, env, teacher), lambda index, group: colours[group.method])
         ax.set_title(env, fontsize=10)
         ax.set(xlabel="environment frames", ylabel="eval return")
         ax.legend(loc="best", fontsize=7)
@@ -836,9 +830,7 @@ def readme_section(groups: dict, teacher: str, figure: str) -> str:
     for method in methods:
         cells = [readme_cell(groups.get((env, teacher, method))) for env in envs]
         lines.append(f"| {method} | " + " | ".join(cells) + " |")
-    teachers = [
-        next((g.teacher_return for (e, t, _), g in groups.items() if (e, t) == (env, teacher)), None) for env in envs
-    ]
+    teachers = [pair_groups(groups, env, teacher)[0].teacher_return for env in envs]
     lines.append("| teacher | " + " | ".join(fmt(value) for value in teachers) + " |")
     paper = [PAPER_SAIL.get(paper_env(env)) for env in envs]
     lines.append(
@@ -856,10 +848,12 @@ def readme_section(groups: dict, teacher: str, figure: str) -> str:
         if not run.offline and (run.summary or {}).get("frames_per_second")
     )
     commands = [cell_command(group) for env in envs for group in pair_groups(groups, env, teacher)]
+    episodes = "/".join(str(n) for n in sorted({run.eval_episodes for run in runs} - {None}))
     text = [
         README_START,
         "",
-        "Per run, the mean of its last 5 deterministic evaluations (10 episodes each); per cell, the mean ± std",
+        f"Per run, the mean of its last {HEADLINE_EVALS} deterministic evaluations ({episodes} episodes each); "
+        "per cell, the mean ± std",
         f"over seeds. Budget per run: {', '.join(frames_label(b) + ' frames' for b in budgets)}. CPUs: "
         f"{', '.join(cpus)}, {'/'.join(map(str, threads))} torch thread per run; wall time about {hours:.0f} h "
         "in all (estimated: each run's frames over its frames per second).",
