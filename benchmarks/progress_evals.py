@@ -27,6 +27,9 @@ import yaml
 
 from torchrl_sail.runs import COLLECTED_SCALARS, write_atomic
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
+from run_utils import crossings  # noqa: E402  (the example's cadence rule, so the two cannot drift)
+
 # tqdm's line: "  90%|...| 90000/100000 [04:00<00:27, 370.0frames/s, C=281, alpha=0.00, eval=2888, fps=374, ret=323]"
 PROGRESS = re.compile(r"(\d+)/\d+ \[.*\beval=(\S+?)[,\]]")
 
@@ -51,7 +54,7 @@ def eval_curve(log_text: str, every_frames: int) -> list[tuple[int, float]]:
             shown[int(match.group(1))] = match.group(2)
     curve, before = [], 0
     for frames in sorted(shown):
-        if frames // every_frames > before // every_frames:  # a multiple of every_frames in (before, frames]
+        if crossings(every_frames, 0, before, frames):
             if shown[frames] == "-":
                 raise ValueError(f"the progress line at {frames} frames shows no evaluation")
             curve.append((frames, float(shown[frames])))
