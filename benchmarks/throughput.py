@@ -27,7 +27,10 @@ Two measurements of each trainer, both reported:
 - ``--whole-process``: each run also with ``2 * --frames`` frames, both timed from process start
   to exit; ``frames / (T(2 frames) - T(frames))`` counts everything a longer run adds (logging,
   the Python around the phases, memory growth) and nothing it does once (imports, building,
-  warm-up).
+  warm-up). Before the first round, each trainer runs once untimed (the shortest run, 1000
+  frames): a cold start costs the first process of a fresh install or cache several seconds
+  (bytecode compilation, the page cache) that later ones do not pay, and without this run it
+  would land on the first trainer's ``--frames`` run only.
 
 Runs alternate round by round (round, threads, trainer), so peers share the same period.
 Reports the median over rounds of frames/s, ms per gradient step, ms per collected frame and
@@ -56,6 +59,7 @@ REPO = Path(__file__).resolve().parents[1]
 TRAINERS = ("sail", "td3", "sb3")
 METRICS = ("fps", "ms_update", "ms_frame", "peak_mb", "gradient_steps")
 PROCESS_METRIC = "fps_whole_process"
+WARMUP_PROCESS_FRAMES = 1000  # the untimed run before --whole-process rounds: the shortest allowed
 SB3_MISSING = 'stable-baselines3 is not installed: pip install -e ".[bench]"'
 
 
@@ -410,6 +414,11 @@ def main(argv: list[str] | None = None) -> None:
     if info["load_1min"] > 0.5:
         print(f"WARNING: 1-min load average {info['load_1min']:.2f} > 0.5: something else is running", file=sys.stderr)
     records = []
+    if args.whole_process:  # a cold start is paid here, not by the first timed process (see above)
+        for threads in args.threads:
+            for trainer in args.trainers:
+                print(f"untimed warm-up run: {trainer}, {threads} thread(s)", flush=True)
+                run_one(args, trainer, threads, WARMUP_PROCESS_FRAMES)
     for rnd in range(args.rounds):
         for threads in args.threads:
             for trainer in args.trainers:

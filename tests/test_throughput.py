@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import sys
 
 import pytest
@@ -197,5 +198,15 @@ def test_whole_process_runs_each_trainer_at_frames_and_twice_frames(tmp_path, mo
     throughput.main(
         ["--trainers", "sail", "td3", "--threads", "1", "--rounds", "1", "--whole-process", "--out", str(out)]
     )
-    assert calls == [("sail", 1, 5000), ("sail", 1, 10000), ("td3", 1, 5000), ("td3", 1, 10000)]
+    # one untimed 1000-frame run of each trainer first (it pays the cold start), then the timed pairs
+    assert calls == [
+        ("sail", 1, 1000),
+        ("td3", 1, 1000),
+        ("sail", 1, 5000),
+        ("sail", 1, 10000),
+        ("td3", 1, 5000),
+        ("td3", 1, 10000),
+    ]
+    records = json.loads(out.read_text())["records"]
+    assert [(r["trainer"], r["frames"]) for r in records] == [c[::2] for c in calls[2:]]  # warm-up runs not kept
     assert throughput.parse_args([]).whole_process is False
