@@ -1,0 +1,84 @@
+"""A run's training diagnostics per window of frames: what the learner and its discriminator did when.
+
+    python benchmarks/windows.py RUN_DIR [RUN_DIR ...] [--window 20000]
+
+Reads a run's ``logs/scalars`` or its results copy (``scalars.csv``) with
+:func:`torchrl_sail.runs.read_scalar` and prints, for each window ``(k * W, (k + 1) * W]``,
+one Markdown row: the mean evaluation return, the best training episode's dense return,
+the promotion threshold ``C`` and the promotions so far (their maximum in the window), the
+mean teacher share alpha, and the means of the discriminator's accuracy, reward and mean
+logit on teacher / agent rows, the agent rows' reward spread, the critic's mean Q and the
+gradient penalty. A tag a run did not log prints ``-``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+from statistics import mean
+
+from torchrl_sail.runs import read_scalar
+
+# (column, tag, how a window's values become one number)
+COLUMNS = (
+    ("eval", "eval/return", mean),
+    ("train max", "train/dense_return", max),
+    ("C", "teacher/threshold", max),
+    ("promoted", "teacher/num_promoted", max),
+    ("alpha", "alpha", mean),
+    ("D acc teacher", "d/accuracy_teacher", mean),
+    ("D acc agent", "d/accuracy_agent", mean),
+    ("D reward teacher", "d/reward_teacher", mean),
+    ("D reward agent", "d/reward_agent", mean),
+    ("D reward agent std", "d/reward_agent_std", mean),
+    ("logit teacher", "d/logit_teacher", mean),
+    ("logit agent", "d/logit_agent", mean),
+    ("Q", "sail/q_mean", mean),
+    ("GP", "d/grad_penalty", mean),
+)
+
+
+def windows(run_dir: Path, window: int) -> list[dict]:
+    """One dict per window up to the last logged frame: ``frames`` (the window's end) and each column (nan: none)."""
+    series = {name: read_scalar(run_dir, tag) for name, tag, _ in COLUMNS}
+    last = max((frame for rows in series.values() for frame, _ in rows), default=0)
+    table = []
+    for k in range(math.ceil(last / window)):
+        row = {"frames": (k + 1) * window}
+        for name, _, reduce in COLUMNS:
+            values = [v for frame, v in series[name] if k * window < frame <= (k + 1) * window]
+            row[name] = reduce(values) if values else math.nan
+        table.append(row)
+    return table
+
+
+def markdown(table: list[dict], window: int) -> str:
+    def cell(value: float) -> str:
+        if math.isnan(value):
+            return "-"
+        return f"{value:.0f}" if abs(value) >= 100 else f"{value:.3g}"
+
+    names = [name for name, _, _ in COLUMNS]
+    lines = ["| frames | " + " | ".join(names) + " |", "|---" * (len(names) + 1) + "|"]
+    for row in table:
+        span = f"{(row['frames'] - window) / 1000:g}-{row['frames'] / 1000:g}k"
+        lines.append(f"| {span} | " + " | ".join(cell(row[name]) for name in names) + " |")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("runs", type=Path, nargs="+", help="run directories (logs/scalars or scalars.csv)")
+    parser.add_argument("--window", type=int, default=20_000, help="frames per window")
+    args = parser.parse_args(argv)
+    if args.window <= 0:
+        parser.error(f"--window must be > 0, got {args.window}")
+    for run_dir in args.runs:
+        if not (run_dir / "scalars.csv").is_file() and not (run_dir / "logs" / "scalars").is_dir():
+            parser.error(f"{run_dir}: no scalars.csv and no logs/scalars")
+        print(f"{run_dir}\n\n{markdown(windows(run_dir, args.window), args.window)}\n")
+
+
+if __name__ == "__main__":
+    main()
