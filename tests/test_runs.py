@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -257,6 +258,23 @@ def test_plot_learning_curve_reads_the_logs(tmp_path):
     write(tmp_path / "logs" / "scalars" / "eval" / "return.csv", "1000,12.5\n2000,30.0\n")
     path = runs.plot_learning_curve(tmp_path, teacher_return=20.0, alpha_switch_frame=1500, title="sail")
     assert path == tmp_path / "learning_curve.png" and path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_plot_learning_curve_leaves_the_callers_matplotlib_alone(tmp_path):
+    # run in a fresh interpreter: the backend is process-wide
+    code = f"""
+import matplotlib
+matplotlib.use("svg")
+import matplotlib.pyplot as plt
+from pathlib import Path
+from torchrl_sail.runs import plot_learning_curve
+plt.figure()
+plot_learning_curve(Path({str(tmp_path)!r}), teacher_return=1.0, alpha_switch_frame=None, title="t")
+print(matplotlib.get_backend(), plt.get_fignums())
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["svg", "[1]"]  # the backend the caller chose, and only the caller's figure
+    assert (tmp_path / "learning_curve.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_train_timing(tmp_path):
