@@ -27,8 +27,8 @@ Two measurements of each trainer, both reported:
 - ``--whole-process``: each run also with ``2 * --frames`` frames, both timed from process start
   to exit; ``frames / (T(2 frames) - T(frames))`` counts everything a longer run adds (logging,
   the Python around the phases, memory growth) and nothing it does once (imports, building,
-  warm-up). Before the first round, each trainer runs once untimed (the shortest run, 1000
-  frames): a cold start costs the first process of a fresh install or cache several seconds
+  warm-up). Before the first round, each trainer runs once untimed (``--warmup`` frames and
+  1000 more, the shortest run): a cold start costs the first process of a fresh install or cache several seconds
   (bytecode compilation, the page cache) that later ones do not pay, and without this run it
   would land on the first trainer's ``--frames`` run only.
 

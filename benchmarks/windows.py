@@ -4,11 +4,12 @@
 
 Reads a run's ``logs/scalars`` or its results copy (``scalars.csv``) with
 :func:`torchrl_sail.runs.read_scalar` and prints, for each window ``(k * W, (k + 1) * W]``,
-one Markdown row: the mean evaluation return, the best training episode's dense return,
-the promotion threshold ``C`` and the promotions so far (their maximum in the window), the
-mean teacher share alpha, and the means of the discriminator's accuracy, reward and mean
-logit on teacher / agent rows, the agent rows' reward spread, the critic's mean Q and the
-gradient penalty. A tag a run did not log prints ``-``.
+one Markdown row (the first window also holds frame 0, e.g. an offline run's one evaluation):
+the mean evaluation return, the best training episode's dense return, the promotion threshold
+``C`` and the promotions so far (their maximum in the window), the mean teacher share alpha,
+and the means of the discriminator's accuracy, reward and mean logit on teacher / agent rows,
+the agent rows' reward spread (std), the critic's mean Q, the gradient penalty and the share of
+D steps ``optim.discriminator.max_accuracy`` skipped. A tag a run did not log prints ``-``.
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ COLUMNS = (
     ("logit agent", "d/logit_agent", mean),
     ("Q", "sail/q_mean", mean),
     ("GP", "d/grad_penalty", mean),
+    ("D skipped", "d/skipped", mean),
 )
 
 
@@ -44,10 +46,11 @@ def windows(run_dir: Path, window: int) -> list[dict]:
     series = {name: read_scalar(run_dir, tag) for name, tag, _ in COLUMNS}
     last = max((frame for rows in series.values() for frame, _ in rows), default=0)
     table = []
-    for k in range(math.ceil(last / window)):
+    for k in range(max(1, math.ceil(last / window))):
         row = {"frames": (k + 1) * window}
+        low = -1 if k == 0 else k * window  # the first window holds frame 0
         for name, _, reduce in COLUMNS:
-            values = [v for frame, v in series[name] if k * window < frame <= (k + 1) * window]
+            values = [v for frame, v in series[name] if low < frame <= (k + 1) * window]
             row[name] = reduce(values) if values else math.nan
         table.append(row)
     return table

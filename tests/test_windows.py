@@ -35,6 +35,13 @@ def test_windows_reduce_each_tag_over_its_frames(tmp_path):
     assert lines[3].startswith("| 0.02-0.04k | 10 | -1 | 6 | - |")
 
 
+def test_frame_0_is_in_the_first_window(tmp_path):
+    write(tmp_path, "eval/return", [(0, 49.0)])  # an offline run: one evaluation, at frame 0
+    write(tmp_path, "d/skipped", [(0, 0.5), (10, 1.0)])
+    (row,) = windows.windows(tmp_path, 20)
+    assert row["frames"] == 20 and row["eval"] == 49.0 and row["D skipped"] == 0.75
+
+
 def test_results_copy_and_cli(tmp_path, capsys):
     (tmp_path / "scalars.csv").write_text("tag,frames,value\neval/return,1000,123.456\nalpha,1000,0.5\n")
     windows.main([str(tmp_path), "--window", "1000"])
