@@ -51,6 +51,14 @@ PAPER_TEACHERS = {
     "Swimmer-v4": "expert_data_no_img_Swimmer_scores_120_episodes_1.npz",
 }
 ENVS = list(PAPER_TEACHERS)
+# The weak-teacher study's teachers (make_teacher.py; benchmarks/README.md has how each was made),
+# folders under --weak-teachers-dir, one per env, each its own label. Hopper's near-random teacher
+# is the teachers stage's "random" cells.
+WEAK_TEACHERS = {
+    "Swimmer-v4": "weak_swimmer",
+    "HalfCheetah-v4": "early_halfcheetah",
+}
+WEAK_TEACHERS_DIR = REPO / "benchmarks" / "results" / "campaign" / "teachers"
 # What a run's report needs from its logs: the evaluation curve, then the diagnostics that explain
 # it (D's accuracy and rewards on both sides, Q, the threshold C and promotions, alpha, speed).
 DIAGNOSTICS = (
@@ -126,6 +134,13 @@ def plan() -> list[Cell]:
             )
             for rule in ("fifo", "union")
         ]
+    # The defaults with weak teachers, 3 seeds (the weak-teacher study's "before" rows): not in the
+    # default stages, as they come after the main table
+    cells += [
+        Cell("weak", env, "sail", seed, 300_000, teacher=label)
+        for seed in (0, 1, 2)
+        for env, label in WEAK_TEACHERS.items()
+    ]
     # fp32 against bf16 (optim.precision), seed by seed, so each pair runs side by side: not in the
     # default stages, as bf16 needs bf16 hardware (--stages precision, on AVX-512/AMX or a GPU)
     cells += [
@@ -150,7 +165,11 @@ def device_of(overrides: list[str]) -> str:
     return devices[-1] if devices else "cpu"
 
 
-def teacher_path(cell: Cell, teachers_dir: Path, random_teacher: Path | None) -> Path | None:
+def teacher_path(
+    cell: Cell, teachers_dir: Path, random_teacher: Path | None, weak_dir: Path = WEAK_TEACHERS_DIR
+) -> Path | None:
+    if cell.stage == "weak":
+        return weak_dir / cell.teacher
     if cell.teacher.startswith("paper"):
         return teachers_dir / PAPER_TEACHERS[cell.env]
     if cell.teacher == "random":
@@ -221,13 +240,20 @@ def main(argv: list[str] | None = None) -> int:
         type=Path,
         help="a near-random Hopper-v4 teacher (make_teachers.py); without it the 'random' cells are skipped",
     )
+    parser.add_argument(
+        "--weak-teachers-dir",
+        type=Path,
+        default=WEAK_TEACHERS_DIR,
+        help=f"the weak teachers of --stages weak: {', '.join(WEAK_TEACHERS.values())} (default: %(default)s)",
+    )
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument(
         "--stages",
         nargs="+",
-        choices=["main", "scale", "teachers", "buffer", "precision"],
+        choices=["main", "scale", "teachers", "buffer", "weak", "precision"],
         default=["main", "scale", "teachers", "buffer"],
-        help="precision (fp32 against bf16) is never a default: it needs bf16 hardware",
+        help="weak (SAIL with weak teachers) and precision (fp32 against bf16: it needs bf16 hardware) "
+        "are never defaults",
     )
     parser.add_argument(
         "--overrides",
@@ -251,6 +277,10 @@ def main(argv: list[str] | None = None) -> int:
     if missing:
         parser.error(f"--teachers-dir {args.teachers_dir} lacks {', '.join(missing)}")
     cells = [c for c in plan() if c.stage in args.stages and (c.teacher != "random" or args.random_teacher)]
+    weak_dir = args.weak_teachers_dir.resolve()
+    missing = sorted({c.teacher for c in cells if c.stage == "weak" and not (weak_dir / c.teacher).is_dir()})
+    if missing:
+        parser.error(f"--weak-teachers-dir {weak_dir} lacks {', '.join(missing)} (see benchmarks/README.md)")
     device = device_of(args.overrides)
     if "precision" in args.stages and not args.dry_run and not native_bf16_matmul(device):
         parser.error(
@@ -263,7 +293,7 @@ def main(argv: list[str] | None = None) -> int:
             command(
                 cell,
                 out,
-                teacher_path(cell, args.teachers_dir.resolve(), args.random_teacher),
+                teacher_path(cell, args.teachers_dir.resolve(), args.random_teacher, weak_dir),
                 extra=tuple(args.overrides),
             ),
         )
@@ -278,7 +308,7 @@ def main(argv: list[str] | None = None) -> int:
         teacher = (
             args.teachers_dir.resolve()
             if cell.teacher.startswith("paper")
-            else teacher_path(cell, args.teachers_dir.resolve(), args.random_teacher)
+            else teacher_path(cell, args.teachers_dir.resolve(), args.random_teacher, weak_dir)
         )
         record_matrix(out / cell.stage, [Teacher(cell.teacher, teacher)], [cell.method], [cell.env], [cell.seed])
 

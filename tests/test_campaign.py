@@ -29,7 +29,7 @@ def test_plan_fills_the_table_seed_0_first():
     assert counts["td3_delayed", 0] == counts["dac_published", 0] == 4  # one seed per env
     assert len(main) == 44 and {c.frames for c in main} == {300_000}
     # the main table precedes the 1M-frame runs, which precede the two sweeps (seed 0 of both first)
-    order = {"main": 0, "scale": 1, "teachers": 2, "buffer": 2, "precision": 3}
+    order = {"main": 0, "scale": 1, "teachers": 2, "buffer": 2, "weak": 3, "precision": 4}
     stages = [order[c.stage] for c in cells]
     assert stages == sorted(stages)
     sweeps = [c.seed for c in cells if order[c.stage] == 2]
@@ -41,6 +41,11 @@ def test_plan_fills_the_table_seed_0_first():
     buffer = [c.overrides for c in cells if c.stage == "buffer"]
     assert sorted(buffer) == sorted([("teacher.eviction=fifo",), ("teacher.eviction=union",)] * 2)
     assert len(set(cells)) == len(cells)  # no run twice
+    # SAIL with each weak teacher, 3 seeds, seed by seed
+    weak = [(c.env, c.method, c.seed, c.frames, c.teacher) for c in cells if c.stage == "weak"]
+    assert weak == [
+        (env, "sail", seed, 300_000, label) for seed in (0, 1, 2) for env, label in campaign.WEAK_TEACHERS.items()
+    ]
     # fp32 beside bf16, seed by seed, on the paper's Hopper teacher
     precision = [(c.env, c.seed, c.frames, c.teacher, c.overrides) for c in cells if c.stage == "precision"]
     assert precision == [
@@ -165,8 +170,8 @@ def test_matrix_records_every_stage_and_label(tmp_path, monkeypatch):
         campaign.subprocess, "run", lambda cmd, **kw: launched.append(cmd) or argparse.Namespace(returncode=0)
     )
     assert campaign.main(["--teachers-dir", str(teachers), "--out", str(tmp_path / "out"), "--jobs", "1"]) == 0
-    default = [c for c in campaign.plan() if c.teacher != "random" and c.stage != "precision"]
-    assert len(launched) == len(default)  # not the precision stage: never a default
+    default = [c for c in campaign.plan() if c.teacher != "random" and c.stage not in ("weak", "precision")]
+    assert len(launched) == len(default)  # not the weak and precision stages: never defaults
     main = json.loads((tmp_path / "out" / "main" / "matrix.json").read_text())
     assert main["teachers"] == {"paper": str(teachers)}  # the authors' folder: one file per env
     assert {(s["envs"][0], s["methods"][0], s["seeds"][0]) for s in main["sweeps"]} == {
@@ -175,3 +180,28 @@ def test_matrix_records_every_stage_and_label(tmp_path, monkeypatch):
     buffer = json.loads((tmp_path / "out" / "buffer" / "matrix.json").read_text())
     assert set(buffer["teachers"]) == {"paper-fifo", "paper-union"}
     assert json.loads((tmp_path / "out" / "teachers" / "matrix.json").read_text())["teachers"] == {"shipped": None}
+
+
+def test_weak_stage_runs_each_weak_teacher_and_refuses_a_missing_one(tmp_path, capsys):
+    teachers = tmp_path / "teachers"
+    teachers.mkdir()
+    for name in campaign.PAPER_TEACHERS.values():
+        (teachers / name).touch()
+    weak = tmp_path / "weak"
+    for label in campaign.WEAK_TEACHERS.values():
+        (weak / label).mkdir(parents=True)
+    args = ["--teachers-dir", str(teachers), "--out", str(tmp_path / "out"), "--stages", "weak", "--dry-run"]
+    assert campaign.main([*args, "--weak-teachers-dir", str(weak)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 6
+    assert f"teacher.path={weak / 'weak_swimmer'}" in lines[0] and "env=Swimmer-v4" in lines[0]
+    assert lines[0].endswith(
+        f"hydra.run.dir={tmp_path / 'out' / 'weak' / 'weak_swimmer' / 'Swimmer-v4' / 'sail' / 'seed0'}"
+    )
+    assert "seed=2" in lines[-1] and "env=HalfCheetah-v4" in lines[-1]
+    (weak / "early_halfcheetah").rmdir()
+    with pytest.raises(SystemExit):
+        campaign.main([*args, "--weak-teachers-dir", str(weak)])
+    assert "lacks early_halfcheetah" in capsys.readouterr().err
+    # the default stages need no weak teacher
+    assert campaign.main([*args[:-3], "--weak-teachers-dir", str(weak), "--dry-run"]) == 0
