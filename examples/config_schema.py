@@ -50,6 +50,7 @@ Backend = Choice("Backend", {name: name for name in ("direct", "process", "ray")
 LoggerBackend = Choice("LoggerBackend", {name: name for name in ("csv", "wandb", "tensorboard")})
 WandbMode = Choice("WandbMode", {name: name for name in ("offline", "online")})
 VideoFormat = Choice("VideoFormat", {name: name for name in ("mp4", "gif")})
+RewardRounding = Choice("RewardRounding", {name: name for name in ("floor", "none")})
 
 
 @dataclass
@@ -64,6 +65,9 @@ class EnvConfig:
     teacher_capacity: int = 100_000
     # keyword arguments of gymnasium.make, added with Hydra's +: +env.kwargs.use_contact_forces=true (Ant-v4)
     kwargs: Dict[str, Any] = field(default_factory=dict)
+    # the trajectory-wise reward r_e, the agent's and the demonstrations': floor = the paper's
+    # floor(0.1 R) | none = 0.1 R, so promotion compares returns as the authors' code does
+    reward_rounding: RewardRounding = RewardRounding.floor
 
 
 @dataclass

@@ -85,6 +85,7 @@ def make_env(cfg: DictConfig, seed: int, *, render_size=None):
     env = make_sail_env(
         cfg.env.name,
         max_episode_steps=cfg.env.max_episode_steps,
+        rounding=str(cfg.env.reward_rounding),
         absorbing_state=cfg.algo.absorbing_state,
         render_size=None if render_size is None else tuple(render_size),
         device=env_device(cfg),
@@ -179,8 +180,9 @@ def make_teacher(cfg: DictConfig, env, absorbing: AbsorbingStateTransform | None
     # The env appends the time feature: a file recorded without it gets it computed from the
     # episode steps ("minari:<id>" survives Path: load_demonstrations reads it).
     demos, meta = load_demonstrations(path, max_episode_steps=cfg.env.max_episode_steps, time_feature=True)
-    # The buffer ranks trajectories by r_e = floor(0.1 R), the only reward the learner sees.
-    demos = DelayedRewardTransform().forward(demos).select(*TRANSITION_KEYS)
+    # The buffer ranks trajectories by r_e (floor(0.1 R) by default), the only reward the learner
+    # sees: the demonstrations' is computed as the env computes the agent's.
+    demos = DelayedRewardTransform(rounding=str(cfg.env.reward_rounding)).forward(demos).select(*TRANSITION_KEYS)
     if absorbing is not None:
         demos = absorbing(demos)
     check_demonstration_dims(demos, env=env, source=str(path), env_name=cfg.env.name)

@@ -3,6 +3,7 @@ conforms and holds only what differs from it; bad values name their key."""
 
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 
@@ -278,3 +279,21 @@ def test_discriminator_remedies_reach_the_loss_the_net_and_the_step():
     assert discriminator_step(cfg, d_loss, optimizer, batch(3.0))["d/skipped"] == 1.0
     assert all(torch.equal(a, b) for a, b in zip(before, raw_weights()))  # a skipped step changes no parameter
     assert all(p.grad is None for p in discriminator.parameters())
+
+
+@pytest.mark.parametrize("rounding", ["floor", "none"])
+def test_reward_rounding_reaches_the_env_and_the_demonstrations(rounding):
+    from utils import make_env, make_teacher
+
+    cfg = make("env=Hopper-v4", f"env.reward_rounding={rounding}")
+    env = make_env(cfg, seed=0)
+    teacher, teacher_return, _ = make_teacher(cfg, env)
+    # the shipped Hopper teacher: one demonstration, so C is its r_e
+    expected = math.floor(0.1 * teacher_return) if rounding == "floor" else 0.1 * teacher_return
+    assert teacher.writer.threshold == pytest.approx(expected, rel=1e-6)
+    rollout = env.rollout(1000, break_when_any_done=True)  # random actions: Hopper falls within 1000 steps
+    dense_return = float(rollout["next", "episode_return"][-1])
+    reward = rollout["next", "reward"].reshape(-1)
+    assert reward[:-1].abs().sum() == 0  # delayed: nothing before the episode's end
+    expected = math.floor(0.1 * dense_return) if rounding == "floor" else 0.1 * dense_return
+    assert float(reward[-1]) == pytest.approx(expected, rel=1e-5, abs=1e-6)
