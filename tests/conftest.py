@@ -66,10 +66,6 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if item.path.stem in SLOW_MODULES:
             item.add_marker(pytest.mark.slow)
-    # Longest first, so that pytest-xdist's workers do not end on a long run while the others
-    # idle: the learning test (the longest), then the other slow modules, then the rest; each
-    # group in its collected order.
-    items.sort(key=lambda item: (item.path.stem != "test_learning", item.path.stem not in SLOW_MODULES))
 
 
 def pytest_addoption(parser):
