@@ -166,7 +166,7 @@ def device_of(overrides: list[str]) -> str:
 
 
 def teacher_path(
-    cell: Cell, teachers_dir: Path, random_teacher: Path | None, weak_dir: Path = WEAK_TEACHERS_DIR
+    cell: Cell, teachers_dir: Path | None, random_teacher: Path | None, weak_dir: Path = WEAK_TEACHERS_DIR
 ) -> Path | None:
     if cell.stage == "weak":
         return weak_dir / cell.teacher
@@ -271,12 +271,14 @@ def main(argv: list[str] | None = None) -> int:
         for target in collect(out, args.collect):
             print(target)
         return 0
-    if args.teachers_dir is None:
-        parser.error("--teachers-dir is required to run the campaign")
-    missing = [name for name in PAPER_TEACHERS.values() if not (args.teachers_dir / name).exists()]
-    if missing:
-        parser.error(f"--teachers-dir {args.teachers_dir} lacks {', '.join(missing)}")
     cells = [c for c in plan() if c.stage in args.stages and (c.teacher != "random" or args.random_teacher)]
+    if any(c.teacher.startswith("paper") for c in cells):  # --stages weak alone needs no paper teacher
+        if args.teachers_dir is None:
+            parser.error(f"--teachers-dir is required by --stages {' '.join(args.stages)}")
+        missing = [name for name in PAPER_TEACHERS.values() if not (args.teachers_dir / name).exists()]
+        if missing:
+            parser.error(f"--teachers-dir {args.teachers_dir} lacks {', '.join(missing)}")
+    teachers_dir = None if args.teachers_dir is None else args.teachers_dir.resolve()
     weak_dir = args.weak_teachers_dir.resolve()
     missing = sorted({c.teacher for c in cells if c.stage == "weak" and not (weak_dir / c.teacher).is_dir()})
     if missing:
@@ -293,7 +295,7 @@ def main(argv: list[str] | None = None) -> int:
             command(
                 cell,
                 out,
-                teacher_path(cell, args.teachers_dir.resolve(), args.random_teacher, weak_dir),
+                teacher_path(cell, teachers_dir, args.random_teacher, weak_dir),
                 extra=tuple(args.overrides),
             ),
         )
@@ -306,9 +308,9 @@ def main(argv: list[str] | None = None) -> int:
     for cell in cells:  # aggregate.py labels runs from each stage folder's matrix.json
         # one label per teacher folder: "paper" is the authors' folder, a file per env
         teacher = (
-            args.teachers_dir.resolve()
+            teachers_dir
             if cell.teacher.startswith("paper")
-            else teacher_path(cell, args.teachers_dir.resolve(), args.random_teacher, weak_dir)
+            else teacher_path(cell, teachers_dir, args.random_teacher, weak_dir)
         )
         record_matrix(out / cell.stage, [Teacher(cell.teacher, teacher)], [cell.method], [cell.env], [cell.seed])
 

@@ -205,3 +205,11 @@ def test_weak_stage_runs_each_weak_teacher_and_refuses_a_missing_one(tmp_path, c
     assert "lacks early_halfcheetah" in capsys.readouterr().err
     # the default stages need no weak teacher
     assert campaign.main([*args[:-3], "--weak-teachers-dir", str(weak), "--dry-run"]) == 0
+    # and the weak stage alone needs no paper teacher; the others still do
+    (weak / "early_halfcheetah").mkdir()
+    capsys.readouterr()
+    assert campaign.main(args[2:] + ["--weak-teachers-dir", str(weak)]) == 0
+    assert len(capsys.readouterr().out.splitlines()) == 6
+    with pytest.raises(SystemExit):
+        campaign.main(["--out", str(tmp_path / "out"), "--dry-run"])
+    assert "--teachers-dir is required by --stages main scale teachers buffer" in capsys.readouterr().err
