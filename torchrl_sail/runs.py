@@ -393,12 +393,11 @@ def train_timing(train_clock: tuple[float, int] | None, *, end: float, frames: i
 def plot_learning_curve(run_dir: Path, *, teacher_return: float, alpha_switch_frame: int | None, title: str) -> Path:
     """``learning_curve.png`` (the paper's Figure 2 style): the logged training and evaluation
     returns against frames, the teacher's return dashed and the alpha switch dotted."""
-    # A Figure of its own on the Agg canvas: no pyplot, so the caller's backend and figures are left alone
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    # A Figure of its own (savefig renders a .png with Agg): no pyplot, so the caller's backend and
+    # figures are left alone
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(7, 4))
-    FigureCanvasAgg(fig)
     ax = fig.subplots()
     for tag, label, style in (
         ("train/dense_return", "training return (noisy actions)", {"alpha": 0.35}),
