@@ -89,6 +89,7 @@ def main(cfg):  # noqa: F821
         best_eval_return=final,
         passed_teacher_at_frame=0 if final > teacher_return else None,
         train_seconds=run["train_seconds"],
+        resumes=run["resumes"],
     )
 
 

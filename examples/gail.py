@@ -236,6 +236,7 @@ def main(cfg):  # noqa: F821
         final_eval_return=evals[-1] if evals else None,
         best_eval_return=max(evals) if evals else None,
         passed_teacher_at_frame=run["passed_teacher_at"],
+        resumes=run["resumes"],
         num_promoted=0,
         frames_per_second=(frames - start_frames) / max(end - start, 1e-9),
         **train_timing(clock, end=end, frames=frames),

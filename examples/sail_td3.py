@@ -295,6 +295,7 @@ def main(cfg):  # noqa: F821
         final_eval_return=evals[-1] if evals else None,
         best_eval_return=max(evals) if evals else None,
         passed_teacher_at_frame=run["passed_teacher_at"],
+        resumes=run["resumes"],
         num_promoted=teacher.writer.num_promoted,
         teacher_threshold=teacher.writer.threshold,
         frames_per_second=(frames - start_frames) / max(end - start, 1e-9),

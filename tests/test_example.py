@@ -168,6 +168,7 @@ def test_resume_restores_state(tmp_path, teacher_dir):
     assert summary["frames"] == 3000 and summary["gradient_steps"] == 150
     frames = [f for f, _ in read_scalar(run_dir, "eval/return")]
     assert frames == [1000, 2000, 3000]
+    assert summary["resumes"] == [{"frames": 2000, "changes": {"collector.total_frames": [2000, 3000]}}]
 
 
 def test_resume_after_kill_continues_the_same_curve(tmp_path, teacher_dir):

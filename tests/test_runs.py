@@ -42,10 +42,13 @@ def identity(**changes) -> dict:
     return {"env": "Hopper-v4", "algo": "sail", "seed": 0, "teacher": "/data/paper.npz", **changes}
 
 
-def saved_run(run_dir: Path, *, frames: int = 2000, weight: float = 1.0, lr: float = 1e-3, **changes) -> None:
-    """A checkpoint as a training script saves it: the run dict at ``frames``, a layer and its optimizer."""
+def saved_run(
+    run_dir: Path, *, frames: int = 2000, weight: float = 1.0, lr: float = 1e-3, config: dict | None = None, **changes
+) -> None:
+    """A checkpoint as a training script saves it: the run dict at ``frames`` (trained with ``config``), a layer
+    and its optimizer."""
     run = new_run(**identity(**changes))
-    run.update(frames=frames, gradient_steps=frames // 20, evals=[(1000, 5.0), (2000, 30.0)])
+    run.update(frames=frames, gradient_steps=frames // 20, evals=[(1000, 5.0), (2000, 30.0)], config=config)
     layer = torch.nn.Linear(2, 1)
     torch.nn.init.constant_(layer.weight, weight)
     optimizer = torch.optim.Adam(layer.parameters(), lr=lr)
@@ -131,6 +134,44 @@ def test_restore_refuses_another_runs_checkpoint(tmp_path, change, message):
     assert torch.equal(layer.weight, before)  # nothing but the run's identity was read
 
 
+TRAINED = {"seed": 0, "resume": False, "optim": {"lr": 1e-3, "gamma": 0.99}, "network": {"spectral_norm": False}}
+
+
+def test_restore_refuses_a_config_change_the_checkpoint_was_not_trained_with(tmp_path):
+    saved_run(tmp_path / "run", weight=0.5, config=TRAINED)
+    run, layer, _, checkpoint = fresh()
+    before = layer.weight.detach().clone()
+    config = {**TRAINED, "resume": True, "optim": {"lr": 1e-3, "gamma": 0.9}, "network": {"spectral_norm": True}}
+    with pytest.raises(ValueError) as err:
+        restore_run(checkpoint, tmp_path / "run", run, config=config)
+    assert str(err.value).startswith(
+        f"resume: {tmp_path / 'run' / 'checkpoint'} was written with network.spectral_norm=False, this run has "
+        "network.spectral_norm=True; with optim.gamma=0.99, this run has optim.gamma=0.9. A resumed run may change "
+        "only its length, logging, evaluation, checkpoints, hardware and learning rates"
+    )
+    assert torch.equal(layer.weight, before)  # refused before the checkpoint was loaded
+
+
+def test_restore_records_the_allowed_changes_against_the_checkpoints_config(tmp_path, capsys):
+    run_dir = tmp_path / "run"
+    saved_run(run_dir, config=TRAINED)
+    # config.yaml is what the last start went on with (here a diverged resume at lr 1e12 that saved nothing):
+    # the comparison is with the config the checkpoint was trained with
+    write(run_dir / "config.yaml", "seed: 0\nresume: true\noptim:\n  lr: 1.0e12\n  gamma: 0.99\n")
+    run, _, _, checkpoint = fresh()
+    restore_run(checkpoint, run_dir, run, config={**TRAINED, "resume": True, "optim": {"lr": 5e-4, "gamma": 0.99}})
+    assert run["resumes"] == [{"frames": 2000, "changes": {"optim.lr": [1e-3, 5e-4]}}]  # `resume` itself is not one
+    assert "resume at frame 2000: optim.lr=0.001 -> 0.0005" in capsys.readouterr().out
+    # a checkpoint without its config (an earlier version's) is compared with config.yaml
+    saved_run(run_dir, config=None)
+    run, _, _, checkpoint = fresh()
+    with pytest.raises(ValueError, match=r"written with optim.gamma=0.99, this run has optim.gamma=0.9\."):
+        restore_run(checkpoint, run_dir, run, config={"seed": 0, "optim": {"lr": 1.0e12, "gamma": 0.9}})
+    run, _, _, checkpoint = fresh()
+    restore_run(checkpoint, run_dir, run, config={"seed": 0, "optim": {"lr": 1.0e12, "gamma": 0.99}, "new_key": 1})
+    assert run["resumes"] == []  # nothing changed; a key only one config has is not compared
+
+
 def test_restore_without_or_with_a_damaged_checkpoint(tmp_path):
     run, _, _, checkpoint = fresh()
     with pytest.raises(FileNotFoundError, match="resume=true but there is no checkpoint at"):
@@ -171,7 +212,8 @@ def test_start_writes_only_the_config(tmp_path):
     run, _, _, checkpoint = fresh()
     (tmp_path / "run").mkdir()
     start_or_resume(checkpoint, tmp_path / "run", run, False, config=OmegaConf.create({"seed": 3}))
-    assert sorted(p.name for p in (tmp_path / "run").iterdir()) == ["config.yaml"] and run == new_run(**identity())
+    assert sorted(p.name for p in (tmp_path / "run").iterdir()) == ["config.yaml"]
+    assert run == {**new_run(**identity()), "config": {"seed": 3}}  # each checkpoint keeps the config it trained with
 
 
 def test_truncate_scalar_logs_rewrites_only_the_files_with_later_rows(tmp_path):

@@ -35,7 +35,7 @@ import platform
 import resource
 import shutil
 import subprocess
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 import torch
@@ -50,7 +50,9 @@ __all__ = [
     "SCALARS",
     "SUMMARY",
     "add_evaluation",
+    "RESUME_MAY_CHANGE",
     "checkpoint_dir",
+    "config_changes",
     "cpu_flags",
     "cpu_model",
     "discriminator_summary",
@@ -79,6 +81,31 @@ COLLECTED_SCALARS = "scalars.csv"
 
 # The run's identity entries and the config keys they come from (named in resume errors).
 _IDENTITY_KEYS = {"env": "env", "algo": "algo", "seed": "seed", "teacher": "teacher.path"}
+
+#: The config keys a resumed run may change (a trailing ``.`` covers a whole section): its length,
+#: logging, evaluation, checkpoints, hardware and learning rates (a diverged run goes on with a
+#: lower one). Any other change would make one curve of two configs, or not fit the checkpoint.
+RESUME_MAY_CHANGE = (
+    "resume",
+    "collector.total_frames",
+    "collector.num_workers",
+    "collector.backend",
+    "collector.backend_options",
+    "logger.",
+    "eval.",
+    "checkpoint.",
+    "threads",
+    "device",
+    "optim.implementation",
+    "optim.cudagraphs",
+    "optim.lr",
+    "optim.discriminator.lr",
+    "optim.actor_max_grad_norm",
+    "algo.ppo.lr",
+    "algo.sac.alpha_lr",
+    "algo.rnd.lr",
+    "algo.bc.lr",
+)
 
 
 def checkpoint_dir(run_dir: Path) -> Path:
@@ -143,12 +170,38 @@ def resume_mode(run_dir: Path, resume: bool | str, total_frames: int) -> bool | 
     return resume
 
 
+def config_changes(saved: Mapping, current: Mapping) -> dict[str, tuple]:
+    """The dotted keys whose values differ between two plain nested configs, with ``(saved, current)``.
+
+    Keys that only one of them has are not compared (a config written by another version).
+
+    Examples:
+        >>> config_changes({"seed": 0, "optim": {"lr": 1e-3, "tau": 0.005}, "old": 1},
+        ...                {"seed": 0, "optim": {"lr": 1e-4, "tau": 0.005}, "new": 2})
+        {'optim.lr': (0.001, 0.0001)}
+    """
+    changes = {}
+    for key in saved.keys() & current.keys():
+        old, new = saved[key], current[key]
+        if isinstance(old, Mapping) and isinstance(new, Mapping):
+            changes.update({f"{key}.{k}": v for k, v in config_changes(old, new).items()})
+        elif old != new:
+            changes[str(key)] = (old, new)
+    return dict(sorted(changes.items()))
+
+
+def _may_change(key: str, allowed: Iterable[str]) -> bool:
+    return any(key == a or (a.endswith(".") and key.startswith(a)) for a in allowed)
+
+
 def new_run(*, env: str, algo: str, seed: int, teacher: str | None) -> dict:
     """The run's own state, saved with the checkpoint as its ``run`` component.
 
     Counters (``frames``, ``gradient_steps``), the evaluations ``evals`` (``[frames, mean return]``
     pairs, see :func:`add_evaluation`) and ``passed_teacher_at``, the non-CSV loggers' states
-    (``loggers``), and the ``identity`` a resumed run must match.
+    (``loggers``), the ``identity`` a resumed run must match, the resolved ``config`` it trains
+    with (set by :func:`start_or_resume`), and ``resumes``: the config changes each resume made
+    (``{"frames": ..., "changes": {key: [saved, new]}}``, see :func:`restore_run`).
 
     Examples:
         >>> new_run(env="Hopper-v4", algo="sail", seed=0, teacher=None)["identity"]
@@ -161,6 +214,8 @@ def new_run(*, env: str, algo: str, seed: int, teacher: str | None) -> dict:
         "passed_teacher_at": None,
         "loggers": {},
         "identity": {"env": env, "algo": algo, "seed": seed, "teacher": teacher},
+        "config": None,
+        "resumes": [],
     }
 
 
@@ -189,42 +244,66 @@ def start_or_resume(
     optimizers: Iterable = (),
     truncate_logs: bool = True,
     config=None,
+    may_change: Iterable[str] = RESUME_MAY_CHANGE,
 ) -> None:
     """Restores ``checkpoint`` from ``run_dir`` when ``resuming`` (:func:`restore_run`), then writes
     ``config`` (an OmegaConf config) to ``config.yaml``, resolved: the config the run goes on with.
 
-    Only a resume that passed its checks drops the run's old ``summary.json`` (a continued run is
-    unfinished until it ends). The ``optimizers`` keep the learning rates they were built with
-    from the config: a run continued with another learning rate (e.g. after a divergence) uses
-    it, not the saved one.
+    ``config`` is also kept in ``run["config"]`` (without its ``resume`` entry), so each
+    checkpoint holds the config it was trained with, and a resume is checked against it
+    (:func:`restore_run`). Only a resume that
+    passed its checks drops the run's old ``summary.json`` (a continued run is unfinished until
+    it ends). The ``optimizers`` keep the learning rates they were built with from the config:
+    a run continued with another learning rate (e.g. after a divergence) uses it, not the saved
+    one.
     """
     run_dir = Path(run_dir)
+    current = None
+    if config is not None:
+        from omegaconf import OmegaConf
+
+        current = OmegaConf.to_container(config, resolve=True, enum_to_str=True)
+        current.pop("resume", None)  # how this process started, not how the run trains
     if resuming:
         configured = [[group["lr"] for group in optimizer.param_groups] for optimizer in optimizers]
-        restore_run(checkpoint, run_dir, run, truncate_logs=truncate_logs)
+        restore_run(checkpoint, run_dir, run, truncate_logs=truncate_logs, config=current, may_change=may_change)
         for optimizer, lrs in zip(optimizers, configured):
             for group, lr in zip(optimizer.param_groups, lrs):
                 group["lr"] = lr
         if truncate_logs:
             (run_dir / SUMMARY).unlink(missing_ok=True)
     if config is not None:
-        from omegaconf import OmegaConf
-
+        run["config"] = current
         OmegaConf.save(config, run_dir / CONFIG, resolve=True)
 
 
-def restore_run(checkpoint, run_dir: Path, run: dict, *, truncate_logs: bool = True) -> None:
+def restore_run(
+    checkpoint,
+    run_dir: Path,
+    run: dict,
+    *,
+    truncate_logs: bool = True,
+    config: Mapping | None = None,
+    may_change: Iterable[str] = RESUME_MAY_CHANGE,
+) -> None:
     """Restores every component of ``checkpoint`` from ``<run_dir>/checkpoint``, after checking it is this run's.
 
     ``run`` is the :func:`new_run` dict of this run (a component of ``checkpoint``): its
     ``identity`` is compared with the saved one first (a checkpoint saved without the
-    ``teacher`` entry is not checked on it). ``truncate_logs`` then drops the CSV rows logged
-    after the checkpoint's frame (:func:`truncate_scalar_logs`: this run logs them again);
-    offline runs, whose logs are not indexed by frames, keep theirs.
+    ``teacher`` entry is not checked on it). Then ``config`` (this run's resolved config, a
+    plain dict) is compared with the one the checkpoint was trained with (``run["config"]``,
+    or ``config.yaml`` for a checkpoint that has none): a change of a key outside
+    ``may_change`` (:data:`RESUME_MAY_CHANGE`) is refused, before anything else is loaded; the
+    allowed changes are printed and appended to ``run["resumes"]`` with the frame they apply
+    from. ``truncate_logs`` then drops the CSV rows logged after the checkpoint's frame
+    (:func:`truncate_scalar_logs`: this run logs them again); offline runs, whose logs are not
+    indexed by frames, keep theirs.
 
     Raises:
         FileNotFoundError: no ``manifest.json`` in the checkpoint folder.
-        ValueError: an unreadable checkpoint, or one written by another env, algo, seed or teacher.
+        ValueError: an unreadable checkpoint, one written by another env, algo, seed or teacher,
+            or a config change outside ``may_change`` (each such key named with its saved and
+            its new value).
     """
     path = checkpoint_dir(run_dir)
     if not (path / "manifest.json").exists():
@@ -246,9 +325,41 @@ def restore_run(checkpoint, run_dir: Path, run: dict, *, truncate_logs: bool = T
                 f"resume: {path} was written with {name}={saved!r}, "
                 f"this run has {name}={this[key]!r}; use the same value."
             )
+    changes = (
+        {} if config is None else _config_changes_on_resume(path, _trained_config(run, run_dir), config, may_change)
+    )
     checkpoint.load(path)
+    run.setdefault("resumes", [])  # a checkpoint of an earlier version has none
+    if changes:
+        print(f"resume at frame {run['frames']}: " + ", ".join(f"{k}={o!r} -> {n!r}" for k, (o, n) in changes.items()))
+        run["resumes"].append({"frames": run["frames"], "changes": {k: [o, n] for k, (o, n) in changes.items()}})
     if truncate_logs:
         truncate_scalar_logs(run_dir, run["frames"])
+
+
+def _trained_config(run: dict, run_dir: Path) -> Mapping | None:
+    """The config a loaded ``run`` was trained with: its own, else ``config.yaml`` (else ``None``)."""
+    if run.get("config") is not None:
+        return run["config"]
+    if (Path(run_dir) / CONFIG).exists():
+        from omegaconf import OmegaConf
+
+        return OmegaConf.to_container(OmegaConf.load(Path(run_dir) / CONFIG))
+    return None
+
+
+def _config_changes_on_resume(path: Path, saved, config: Mapping, may_change: Iterable[str]) -> dict[str, tuple]:
+    """The allowed config changes of a resume (``resume`` itself left out); raises on any other."""
+    changes = {} if saved is None else config_changes(saved, config)
+    refused = [f"{k}={o!r}, this run has {k}={n!r}" for k, (o, n) in changes.items() if not _may_change(k, may_change)]
+    if refused:
+        raise ValueError(
+            f"resume: {path} was written with "
+            + "; with ".join(refused)
+            + ". A resumed run may change only its length, logging, evaluation, checkpoints, hardware and "
+            "learning rates: use the saved values, or start a new run in another hydra.run.dir."
+        )
+    return {k: v for k, v in changes.items() if k != "resume"}
 
 
 def truncate_scalar_logs(run_dir: Path, frames: int) -> list[Path]:
