@@ -7,9 +7,11 @@ Reads a run's ``logs/scalars`` or its results copy (``scalars.csv``) with
 one Markdown row (the first window also holds frame 0, e.g. an offline run's one evaluation):
 the mean evaluation return, the best training episode's dense return, the promotion threshold
 ``C`` and the promotions so far (their maximum in the window), the mean teacher share alpha,
-and the means of the discriminator's accuracy, reward and mean logit on teacher / agent rows,
-the agent rows' reward spread (std), the critic's mean Q, the gradient penalty and the share of
-D steps ``optim.discriminator.max_accuracy`` skipped. A tag a run did not log prints ``-``.
+the mean D reward of the critic's batches (under the method's ``algo.reward``), the means of
+the discriminator's accuracy, ``-log(1 - D)`` (SAIL's reward) and mean logit on teacher / agent
+rows of its own batches, the agent rows' ``-log(1 - D)`` spread (std), the critic's mean Q, the
+gradient penalty and the share of D steps ``optim.discriminator.max_accuracy`` skipped. A tag a
+run did not log prints ``-``.
 """
 
 from __future__ import annotations
@@ -30,9 +32,10 @@ COLUMNS = (
     ("alpha", "alpha", mean),
     ("D acc teacher", "d/accuracy_teacher", mean),
     ("D acc agent", "d/accuracy_agent", mean),
-    ("D reward teacher", "d/reward_teacher", mean),
-    ("D reward agent", "d/reward_agent", mean),
-    ("D reward agent std", "d/reward_agent_std", mean),
+    ("critic reward", "sail/d_reward_mean", mean),
+    ("-log(1-D) teacher", "d/reward_teacher", mean),
+    ("-log(1-D) agent", "d/reward_agent", mean),
+    ("-log(1-D) agent std", "d/reward_agent_std", mean),
     ("logit teacher", "d/logit_teacher", mean),
     ("logit agent", "d/logit_agent", mean),
     ("Q", "sail/q_mean", mean),

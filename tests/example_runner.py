@@ -1,13 +1,22 @@
 """Runs the training scripts (``examples/sail_td3.py``, ``gail.py``, ``bc.py``) and ``evaluate.py`` in a
-subprocess, as a user would (shared by the example tests). Run folders are read with
-``torchrl_sail.runs.read_scalar`` (re-exported here)."""
+process of their own, as a user would (shared by the example tests). Run folders are read with
+``torchrl_sail.runs.read_scalar`` (re-exported here).
+
+A run is a fork of an interpreter that has imported torch and TorchRL already (``fork_server``),
+which saves each run ~5 s of imports; ``TORCHRL_SAIL_TESTS_FORK=0``, a command prefix, or a
+``MUJOCO_GL`` other than unset or ``egl`` runs ``python <script>`` instead."""
 
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
+
+from fork_server import ForkServer, ServerGone
 
 from torchrl_sail.runs import read_scalar  # noqa: F401  (the tests read logged scalars with it)
 
@@ -47,14 +56,7 @@ def run(
     """
     env = {**os.environ, "WANDB_SILENT": "true", "HYDRA_FULL_ERROR": "0", **(env or {})}
     where = ["-m", f"hydra.sweep.dir={run_dir}"] if multirun else [f"hydra.run.dir={run_dir}"]
-    proc = subprocess.run(
-        [*prefix, sys.executable, str(EXAMPLES / script), *where, *overrides],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=900,
-        cwd=REPO,
-    )
+    proc = run_python([str(EXAMPLES / script), *where, *overrides], env=env, timeout=900, prefix=prefix)
     if check and proc.returncode != 0:
         raise AssertionError(f"{script} failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-5000:]}")
     return proc
@@ -63,17 +65,42 @@ def run(
 def evaluate(*overrides: str, env: dict | None = None, check: bool = True) -> subprocess.CompletedProcess:
     """``python examples/evaluate.py <overrides>`` (``MUJOCO_GL=egl`` unless ``env`` says otherwise)."""
     env = {**os.environ, "MUJOCO_GL": "egl", **(env or {})}
-    proc = subprocess.run(
-        [sys.executable, str(EXAMPLES / "evaluate.py"), *overrides],
-        capture_output=True,
-        text=True,
-        cwd=REPO,
-        timeout=600,
-        env=env,
-    )
+    proc = run_python([str(EXAMPLES / "evaluate.py"), *overrides], env=env, timeout=600)
     if check and proc.returncode != 0:
         raise AssertionError(f"evaluate.py failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-5000:]}")
     return proc
+
+
+_SERVERS: dict[str | None, ForkServer | None] = {}  # by MUJOCO_GL; None once a server failed to start
+
+
+def run_python(argv: list[str], *, env: dict, timeout: float, prefix: tuple[str, ...] = ()):
+    """``[*prefix] python <argv>`` in the repository root with ``env``: a ``subprocess.CompletedProcess``
+    with the output as text (through a fork server where it can, see the module's docstring)."""
+    gl = env.get("MUJOCO_GL")
+    if prefix or gl not in (None, "egl") or os.environ.get("TORCHRL_SAIL_TESTS_FORK") == "0":
+        return subprocess.run(
+            [*prefix, sys.executable, *argv], capture_output=True, text=True, env=env, timeout=timeout, cwd=REPO
+        )
+    if gl not in _SERVERS:
+        server_env = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"} | ({"MUJOCO_GL": gl} if gl else {})
+        _SERVERS[gl] = ForkServer(server_env)
+    if _SERVERS[gl] is not None:
+        out_dir = Path(tempfile.mkdtemp(prefix="fork-run-"))
+        try:
+            return _SERVERS[gl].run(argv, env=env, cwd=REPO, timeout=timeout, out_dir=out_dir)
+        except ServerGone:  # e.g. it could not import TorchRL with this MUJOCO_GL: run the script plainly
+            _SERVERS[gl] = None
+        finally:
+            shutil.rmtree(out_dir, ignore_errors=True)
+    return subprocess.run([sys.executable, *argv], capture_output=True, text=True, env=env, timeout=timeout, cwd=REPO)
+
+
+@atexit.register
+def _close_servers() -> None:
+    for server in _SERVERS.values():
+        if server is not None:
+            server.close()
 
 
 class Captured:

@@ -30,7 +30,9 @@ def test_windows_reduce_each_tag_over_its_frames(tmp_path):
     assert first["D acc agent"] == 0.75 and math.isnan(second["D acc agent"])
     assert math.isnan(first["GP"])  # not logged
     lines = windows.markdown(table, 20).splitlines()
-    assert lines[0].startswith("| frames | eval | train max | C |")
+    assert lines[0].startswith(
+        "| frames | eval | train max | C | promoted | alpha | D acc teacher | D acc agent | critic reward |"
+    )
     assert lines[2].startswith("| 0-0.02k | 2 | 7 | 5 | - |")
     assert lines[3].startswith("| 0.02-0.04k | 10 | -1 | 6 | - |")
 

@@ -116,7 +116,7 @@ class DiscriminatorLoss(LossModule):
     ``σ(ℓ) > 0.5``), ``accuracy_agent`` (fraction of agent rows with ``σ(ℓ) < 0.5``),
     ``d_teacher``/``d_agent`` (mean ``σ(ℓ)``), ``entropy`` (mean ``H``),
     ``grad_penalty`` (raw GP) and ``reward_teacher``/``reward_agent`` (mean
-    ``softplus(ℓ) = -log(1 - σ(ℓ))``, the critic's reward), ``reward_teacher_std`` /
+    ``softplus(ℓ) = -log(1 - σ(ℓ))``, SAIL's and GAIL's reward), ``reward_teacher_std`` /
     ``reward_agent_std`` (their spread over the rows) and ``logit_teacher`` / ``logit_agent``
     (mean logits: how far past saturation D is), all on the clean features (``entropy`` is the
     loss term's, on the noisy ones).
