@@ -59,6 +59,7 @@ SLOW_MODULES = {
     "test_readme",
     "test_docs",
     "test_bench_collect",
+    "test_fork_server",
 }
 
 
