@@ -105,6 +105,17 @@ CI_SEED = 0
 NA = "n/a"
 # Config keys that legitimately differ between the seeds of one group.
 PER_RUN_KEYS = ("seed", "resume", "teacher.path", "device", "threads", "logger.")
+# Settings a resume may change that leave what a run learns and how it is evaluated alone: a
+# run's summary records every resume's changes (`resumes`), and the notes name the others.
+OPERATIONAL_RESUME_KEYS = (
+    "collector.total_frames",
+    "collector.num_workers",
+    "collector.backend",
+    "threads",
+    "device",
+    "logger.",
+    "checkpoint.",
+)
 
 
 @dataclass
@@ -725,6 +736,22 @@ def plot_curves(path: Path, env: str, teacher: str, groups: list[Group]) -> None
     plt.close(fig)
 
 
+def resume_notes(group: Group) -> list[str]:
+    """The seeds of a group continued with other settings (``summary.json``'s ``resumes``, less
+    :data:`OPERATIONAL_RESUME_KEYS`), one note per resume that changed any."""
+    name, notes = f"{group.env} / {group.teacher} / {group.method}", []
+    for run in sorted(group.runs, key=lambda r: r.seed):
+        for resume in (run.summary or {}).get("resumes", []):
+            changes = [
+                f"{key} {old!r} -> {new!r}"
+                for key, (old, new) in resume["changes"].items()
+                if not any(key == k or (k.endswith(".") and key.startswith(k)) for k in OPERATIONAL_RESUME_KEYS)
+            ]
+            if changes:
+                notes.append(f"{name}: seed {run.seed} went on from frame {resume['frames']} with {', '.join(changes)}")
+    return notes
+
+
 def headline_notes(group: Group) -> list[str]:
     """Notes on the evaluations behind a group's headline: seeds with fewer than ``HEADLINE_EVALS``
     evaluations, and evaluations of another number of episodes than the spec's."""
@@ -913,7 +940,7 @@ def aggregate(
     left_out = missing + left_out
     notes = []
     for group in groups.values():
-        notes += headline_notes(group)
+        notes += headline_notes(group) + resume_notes(group)
         returns = {run.teacher_return for run in group.runs}
         if len(returns) > 1:
             notes.append(

@@ -179,6 +179,20 @@ def test_run_without_eval_csv_falls_back_to_the_summary_and_other_episode_counts
     assert "Hopper-v4 / paper / sail: evaluations of eval.episodes=5 episodes (the reporting spec asks for 10)" in text
 
 
+def test_a_seed_continued_with_other_settings_is_noted(tmp_path):
+    write_run(tmp_path / "a", evals=frames_curve([10, 20, 30, 40, 50]))
+    folder = write_run(tmp_path / "b", seed=1, evals=frames_curve([10, 20, 30, 40, 50]))
+    summary = json.loads((folder / "summary.json").read_text())
+    resumes = [
+        {"frames": 2000, "changes": {"collector.total_frames": [2000, 5000], "threads": [1, 2]}},  # operational
+        {"frames": 3000, "changes": {"optim.lr": [0.001, 0.0005], "logger.backends": [["csv"], ["wandb"]]}},
+    ]
+    (folder / "summary.json").write_text(json.dumps({**summary, "resumes": resumes}))
+    text, _ = run_aggregate([tmp_path], tmp_path / "out")
+    notes = [line for line in text.splitlines() if "went on from" in line]
+    assert notes == ["- Hopper-v4 / paper / sail: seed 1 went on from frame 3000 with optim.lr 0.001 -> 0.0005"]
+
+
 def test_frames_to_teacher_from_the_curve_when_the_summary_lacks_it(tmp_path):
     write_run(tmp_path / "a", evals=[(1000, 10.0), (2000, 151.0), (3000, 100.0)])
     summary = json.loads((tmp_path / "a" / "summary.json").read_text())
