@@ -3,8 +3,8 @@ process of their own, as a user would (shared by the example tests). Run folders
 ``torchrl_sail.runs.read_scalar`` (re-exported here).
 
 A run is a fork of an interpreter that has imported torch and TorchRL already (``fork_server``),
-which saves each run ~5 s of imports; ``TORCHRL_SAIL_TESTS_FORK=0``, a command prefix, or a
-``MUJOCO_GL`` other than unset or ``egl`` runs ``python <script>`` instead."""
+which saves each run ~5 s of imports (on Linux; ``TORCHRL_SAIL_TESTS_FORK=0``, a command prefix,
+or a ``MUJOCO_GL`` other than unset or ``egl`` runs ``python <script>`` instead)."""
 
 from __future__ import annotations
 
@@ -78,7 +78,8 @@ def run_python(argv: list[str], *, env: dict, timeout: float, prefix: tuple[str,
     """``[*prefix] python <argv>`` in the repository root with ``env``: a ``subprocess.CompletedProcess``
     with the output as text (through a fork server where it can, see the module's docstring)."""
     gl = env.get("MUJOCO_GL")
-    if prefix or gl not in (None, "egl") or os.environ.get("TORCHRL_SAIL_TESTS_FORK") == "0":
+    plain = prefix or gl not in (None, "egl") or os.environ.get("TORCHRL_SAIL_TESTS_FORK") == "0"
+    if plain or not sys.platform.startswith("linux"):  # forking after imports is unsafe on macOS
         return subprocess.run(
             [*prefix, sys.executable, *argv], capture_output=True, text=True, env=env, timeout=timeout, cwd=REPO
         )

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import os
 import subprocess
+import sys
 
 import pytest
 from example_runner import REPO, run_python
@@ -29,6 +30,9 @@ def probe(tmp_path):
     path = tmp_path / "probe.py"
     path.write_text(PROBE)
     return path
+
+
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the fork server runs on Linux only")
 
 
 @pytest.mark.parametrize("fork", ["1", "0"])  # the fork server, and plain python for reference
