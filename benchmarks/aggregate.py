@@ -745,7 +745,7 @@ def resume_notes(group: Group) -> list[str]:
             changes = [
                 f"{key} {old!r} -> {new!r}"
                 for key, (old, new) in resume["changes"].items()
-                if not any(key == k or (k.endswith(".") and key.startswith(k)) for k in OPERATIONAL_RESUME_KEYS)
+                if not key.startswith(OPERATIONAL_RESUME_KEYS)
             ]
             if changes:
                 notes.append(f"{name}: seed {run.seed} went on from frame {resume['frames']} with {', '.join(changes)}")
