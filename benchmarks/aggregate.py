@@ -107,14 +107,18 @@ NA = "n/a"
 PER_RUN_KEYS = ("seed", "resume", "teacher.path", "device", "threads", "logger.")
 # Settings a resume may change that leave what a run learns and how it is evaluated alone: a
 # run's summary records every resume's changes (`resumes`), and the notes name the others.
+# Each covers the keys below it (`logger` covers `logger.backends`).
 OPERATIONAL_RESUME_KEYS = (
     "collector.total_frames",
     "collector.num_workers",
     "collector.backend",
+    "collector.backend_options",
     "threads",
     "device",
-    "logger.",
-    "checkpoint.",
+    "optim.implementation",
+    "optim.cudagraphs",
+    "logger",
+    "checkpoint",
 )
 
 
@@ -384,10 +388,10 @@ def read_matrix(root: Path) -> dict:
         raise ValueError(f"{path} is not valid JSON ({err}); rerun run_matrix.py or delete it") from err
 
 
-def within(a: Path, b: Path) -> bool:
-    """Whether one of the folders ``a`` and ``b`` holds the other (or they are the same)."""
-    a, b = a.resolve(), b.resolve()
-    return a == b or a in b.parents or b in a.parents
+def inside(path: Path, folder: Path) -> bool:
+    """Whether ``path`` is ``folder`` or below it."""
+    path, folder = path.resolve(), folder.resolve()
+    return path == folder or folder in path.parents
 
 
 def shown(path: Path) -> str:
@@ -404,7 +408,7 @@ def missing_runs(
     """(where, why) of each expected run without a run folder.
 
     Under a ``run_matrix.py`` folder, every teacher x env x method x seed of the sweeps in its
-    ``matrix.json`` is expected (those of teachers whose folder is within ``roots``); elsewhere,
+    ``matrix.json`` whose folder is within one of ``roots`` is expected; elsewhere,
     per (env, teacher) seen, every method and seed seen there. ``expect_*`` replace the methods
     and seeds expected.
     """
@@ -422,13 +426,14 @@ def missing_runs(
                 expected |= {(env, teacher, method, seed) for method in methods for seed in seeds}
         else:
             for sweep in read_matrix(root).get("sweeps", []):
-                if any(within(root / sweep["teacher"], given) for given in roots):
-                    expected |= {
-                        (env, sweep["teacher"], method, seed)
-                        for env in sweep["envs"]
-                        for method in expect_methods or sweep["methods"]
-                        for seed in expect_seeds or sweep["seeds"]
-                    }
+                expected |= {
+                    (env, sweep["teacher"], method, seed)
+                    for env in sweep["envs"]
+                    for method in expect_methods or sweep["methods"]
+                    for seed in expect_seeds or sweep["seeds"]
+                    # only the cells under a folder given (a root below the matrix expects its own cells)
+                    if any(inside(root / sweep["teacher"] / env / method / f"seed{seed}", given) for given in roots)
+                }
         rank = {method: index for index, method in enumerate(sort_methods(method for _, _, method, _ in expected))}
         for env, teacher, method, seed in sorted(expected - cells, key=lambda c: (c[0], c[1], rank[c[2]], c[3])):
             where = (
@@ -745,10 +750,26 @@ def resume_notes(group: Group) -> list[str]:
             changes = [
                 f"{key} {old!r} -> {new!r}"
                 for key, (old, new) in resume["changes"].items()
-                if not key.startswith(OPERATIONAL_RESUME_KEYS)
+                if not any(key == k or key.startswith(k + ".") for k in OPERATIONAL_RESUME_KEYS)
             ]
             if changes:
                 notes.append(f"{name}: seed {run.seed} went on from frame {resume['frames']} with {', '.join(changes)}")
+    return notes
+
+
+def group_notes(group: Group) -> list[str]:
+    """Everything a reader of a group's headline should know: :func:`headline_notes`,
+    :func:`resume_notes`, seeds with other teacher returns or other settings."""
+    name = f"{group.env} / {group.teacher} / {group.method}"
+    notes = headline_notes(group) + resume_notes(group)
+    returns = {run.teacher_return for run in group.runs}
+    if len(returns) > 1:
+        notes.append(
+            f"{name}: the seeds' teacher returns differ ({sorted(r for r in returns if r is not None)}); "
+            "the table shows their median"
+        )
+    for key, values in config_differences(group).items():
+        notes.append(f"{name}: the seeds differ in {key} ({', '.join(values)}); they are averaged together")
     return notes
 
 
@@ -848,8 +869,9 @@ def cell_command(group: Group) -> str:
     return " ".join(args)
 
 
-def readme_section(groups: dict, teacher: str, figure: str) -> str:
-    """The README's results section for the runs of ``teacher`` (see the module docstring)."""
+def readme_section(groups: dict, teacher: str, figure: str, report: str = "results.md") -> str:
+    """The README's results section for the runs of ``teacher`` (see the module docstring); ``figure``
+    and ``report`` (the aggregate's ``results.md``, where the notes are) as links from the README."""
     envs = readme_envs(groups, teacher)
     methods = sort_methods(method for (env, label, method) in groups if label == teacher)
     header = "| method | " + " | ".join(envs) + " |"
@@ -876,17 +898,26 @@ def readme_section(groups: dict, teacher: str, figure: str) -> str:
     )
     commands = [cell_command(group) for env in envs for group in pair_groups(groups, env, teacher)]
     episodes = "/".join(str(n) for n in sorted({run.eval_episodes for run in runs} - {None}))
+    shown = [group for (e, t, _), group in groups.items() if t == teacher]
+    offline = sorted({group.method for group in shown if all(run.offline for run in group.runs)})
+    notes = [note for group in shown for note in group_notes(group)]
     text = [
         README_START,
         "",
-        f"Per run, the mean of its last {HEADLINE_EVALS} deterministic evaluations ({episodes} episodes each); "
-        "per cell, the mean ± std",
+        f"Per run, the mean of its last {HEADLINE_EVALS} deterministic evaluations ({episodes} episodes each)"
+        + (f"; offline ({', '.join(offline)}), its one evaluation after training" if offline else "")
+        + "; per cell, the mean ± std",
         f"over seeds. Budget per run: {', '.join(frames_label(b) + ' frames' for b in budgets)}. CPUs: "
         f"{', '.join(cpus)}, {'/'.join(map(str, threads))} torch thread per run; wall time about {hours:.0f} h "
         "in all (estimated: each run's frames over its frames per second).",
         "",
         *lines,
         "",
+        *(
+            [f"Notes on these runs ({len(notes)}: fewer evaluations, other settings): [the report]({report}).", ""]
+            if notes
+            else []
+        ),
         f"![Evaluation return against frames, one panel per env]({figure})",
         "",
         "<details><summary>The command of each cell</summary>",
@@ -903,10 +934,18 @@ def readme_section(groups: dict, teacher: str, figure: str) -> str:
 
 
 def write_readme(readme: Path, out: Path, groups: dict, teacher: str) -> None:
-    """Replaces the lines between ``README_START`` and ``README_END`` in ``readme`` (both must be there)."""
+    """Replaces the lines between ``README_START`` and ``README_END`` in ``readme`` (each must be there
+    once, in that order)."""
     text = readme.read_text()
-    if README_START not in text or README_END not in text:
-        raise ValueError(f"{readme} lacks the lines {README_START} and {README_END} around its results section")
+    if (
+        text.count(README_START) != 1
+        or text.count(README_END) != 1
+        or text.index(README_START) > text.index(README_END)
+    ):
+        raise ValueError(
+            f"{readme} must have the line {README_START}, then the line {README_END}, once each, around its results "
+            "section"
+        )
     figure = out / f"results_{safe_name(teacher)}.png"
     envs = readme_envs(groups, teacher)
     if not envs:
@@ -914,7 +953,8 @@ def write_readme(readme: Path, out: Path, groups: dict, teacher: str) -> None:
     plot_panels(figure, teacher, envs, groups)
     start, end = text.index(README_START), text.index(README_END) + len(README_END)
     link = os.path.relpath(figure.resolve(), readme.resolve().parent)
-    write_atomic(readme, text[:start] + readme_section(groups, teacher, link) + text[end:])
+    report = os.path.relpath((out / "results.md").resolve(), readme.resolve().parent)
+    write_atomic(readme, text[:start] + readme_section(groups, teacher, link, report) + text[end:])
 
 
 def safe_name(text: str) -> str:
@@ -938,20 +978,7 @@ def aggregate(
     label_budgets(runs)
     groups, left_out = group_runs(runs)
     left_out = missing + left_out
-    notes = []
-    for group in groups.values():
-        notes += headline_notes(group) + resume_notes(group)
-        returns = {run.teacher_return for run in group.runs}
-        if len(returns) > 1:
-            notes.append(
-                f"{group.env} / {group.teacher} / {group.method}: the seeds' teacher returns differ "
-                f"({sorted(r for r in returns if r is not None)}); the table shows their median"
-            )
-        for key, values in config_differences(group).items():
-            notes.append(
-                f"{group.env} / {group.teacher} / {group.method}: the seeds differ in {key} "
-                f"({', '.join(values)}); they are averaged together"
-            )
+    notes = [note for group in groups.values() for note in group_notes(group)]
     out.mkdir(parents=True, exist_ok=True)
     curves = []
     for env, teacher in ordered_pairs(groups):

@@ -5,7 +5,9 @@
 Reads a run's ``logs/scalars`` or its results copy (``scalars.csv``) with
 :func:`torchrl_sail.runs.read_scalar` and prints, for each window ``(k * W, (k + 1) * W]``,
 one Markdown row (the first window also holds frame 0, e.g. an offline run's one evaluation):
-the mean evaluation return, the best training episode's dense return, the promotion threshold
+the mean evaluation return, the highest logged training return (``train/dense_return``: the mean
+dense return of the episodes that ended in the last collector batch with an ending before each
+log; on the 1000-step envs, HalfCheetah and Swimmer, every episode alone), the promotion threshold
 ``C`` and the promotions so far (their maximum in the window), the mean teacher share alpha,
 the mean D reward of the critic's batches (under the method's ``algo.reward``), the means of
 the discriminator's accuracy, ``-log(1 - D)`` (SAIL's reward) and mean logit on teacher / agent

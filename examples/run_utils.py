@@ -44,7 +44,7 @@ def start_run(cfg: DictConfig, script: str) -> tuple[Path, bool | None]:
     if cfg.threads:
         torch.set_num_threads(cfg.threads)
     run_dir = Path(HydraConfig.get().runtime.output_dir)
-    resuming = resume_mode(run_dir, cfg.resume, cfg.collector.total_frames)
+    resuming = resume_mode(run_dir, cfg.resume, cfg.collector.total_frames, config=cfg)
     if resuming is None:  # resume=auto on a finished run (e.g. a rerun matrix)
         print(f"{run_dir} holds a finished run: skipped (resume=auto).")
     else:

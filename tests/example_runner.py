@@ -16,7 +16,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from fork_server import ForkServer, ServerGone
+from fork_server import STARTUP_VARIABLES, ForkServer, ServerGone
 
 from torchrl_sail.runs import read_scalar  # noqa: F401  (the tests read logged scalars with it)
 
@@ -78,7 +78,8 @@ def run_python(argv: list[str], *, env: dict, timeout: float, prefix: tuple[str,
     """``[*prefix] python <argv>`` in the repository root with ``env``: a ``subprocess.CompletedProcess``
     with the output as text (through a fork server where it can, see the module's docstring)."""
     gl = env.get("MUJOCO_GL")
-    plain = prefix or gl not in (None, "egl") or os.environ.get("TORCHRL_SAIL_TESTS_FORK") == "0"
+    startup = any(env.get(name) != os.environ.get(name) for name in STARTUP_VARIABLES)  # fixed in the server
+    plain = prefix or startup or gl not in (None, "egl") or os.environ.get("TORCHRL_SAIL_TESTS_FORK") == "0"
     if plain or not sys.platform.startswith("linux"):  # forking after imports is unsafe on macOS
         return subprocess.run(
             [*prefix, sys.executable, *argv], capture_output=True, text=True, env=env, timeout=timeout, cwd=REPO

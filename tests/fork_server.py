@@ -4,9 +4,12 @@ torch, tensordict and TorchRL (shared by the example tests through ``example_run
 A script started with ``python examples/<script>`` spends ~5 s importing them before its first
 line. The server pays that once per test process; each run is then a fork of it: a process of
 its own with the script's ``argv``, environment, working directory, output files and exit
-status, as ``python <script>`` has them (``sys.path[0]`` is the script's folder, the script runs
-as ``__main__``, the interpreter exits normally). TorchRL imports MuJoCo, which reads
-``MUJOCO_GL`` on import, so a server serves one ``MUJOCO_GL`` value, fixed when it starts.
+status, as ``python <script>`` has them (``sys.path[0]`` is the script's folder, then the
+entries of the run's ``PYTHONPATH``; the script runs as ``__main__``, stdin is ``/dev/null``, the
+interpreter exits normally). What an interpreter reads when it starts or imports torch is the
+server's: :data:`STARTUP_VARIABLES` and ``MUJOCO_GL`` (TorchRL imports MuJoCo, which reads it), so a
+server serves one ``MUJOCO_GL`` value, and ``example_runner`` runs a script plainly when its
+environment differs from the server's in the others.
 
 The protocol is one JSON line per request on the server's stdin: ``{"argv", "env", "cwd",
 "stdout", "stderr"}``; it answers ``{"pid"}`` once the run has started, then
@@ -34,6 +37,27 @@ PRELOAD = (
     "torchrl.objectives",
     "torchrl.modules",
     "hydra",
+)
+
+
+#: Read by the interpreter or by torch's import, so fixed in the server (``PYTHONPATH`` is applied per run).
+STARTUP_VARIABLES = (
+    "PYTHONHASHSEED",
+    "PYTHONWARNINGS",
+    "PYTHONDONTWRITEBYTECODE",
+    "PYTHONOPTIMIZE",
+    "PYTHONSAFEPATH",
+    "PYTHONNOUSERSITE",
+    "PYTHONUSERBASE",
+    "PYTHONHOME",
+    "PYTHONSTARTUP",
+    "PYTHONMALLOC",
+    "PYTHONUTF8",
+    "PYTHONIOENCODING",
+    "PYTHONDEVMODE",
+    "PYTHONFAULTHANDLER",
+    "OMP_NUM_THREADS",
+    "MKL_NUM_THREADS",
 )
 
 
@@ -68,9 +92,17 @@ class ForkServer:
         try:
             returncode = json.loads(self._answer(timeout))["returncode"]
         except TimeoutError:
-            os.kill(pid, signal.SIGKILL)
-            self._answer(60)
-            raise subprocess.TimeoutExpired(argv, timeout, stdout.read_text(), stderr.read_text()) from None
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:  # it ended as the time ran out (and was reaped): its answer is on the way
+                returncode = json.loads(self._answer(60))["returncode"]
+            else:
+                self._answer(60)
+                raise subprocess.TimeoutExpired(
+                    argv, timeout, stdout.read_text(errors="replace"), stderr.read_text(errors="replace")
+                ) from None
+        except ServerGone as gone:  # the run had started: running it again would reuse its folder
+            raise RuntimeError(f"the fork server exited during the run of {argv}: {gone}") from None
         return subprocess.CompletedProcess(
             [sys.executable, *argv], returncode, stdout.read_text(errors="replace"), stderr.read_text(errors="replace")
         )
@@ -102,6 +134,7 @@ def _run_script(request: dict) -> int:
     out = os.open(request["stdout"], os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
     err = os.open(request["stderr"], os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
     os.dup2(os.open(os.devnull, os.O_RDONLY), 0)
+    sys.stdin = open(0, closefd=False)  # noqa: SIM115 (the process's stdin, as the interpreter opens it)
     os.dup2(out, 1)
     os.dup2(err, 2)
     os.environ.clear()
@@ -110,6 +143,7 @@ def _run_script(request: dict) -> int:
     script = os.path.abspath(request["argv"][0])
     sys.argv = list(request["argv"])
     sys.path[0] = os.path.dirname(script)
+    sys.path[1:1] = [entry for entry in request["env"].get("PYTHONPATH", "").split(os.pathsep) if entry]
     try:
         runpy.run_path(script, run_name="__main__")
     except SystemExit as exit_:
@@ -128,14 +162,17 @@ def serve() -> int | None:
     """The server's loop; returns the exit status in a fork (which then leaves the loop)."""
     import importlib
 
+    # answers on a descriptor of their own: what an import prints to stdout goes to stderr instead
+    answers = os.fdopen(os.dup(1), "w")
+    os.dup2(2, 1)
     for name in PRELOAD:
         importlib.import_module(name)
-    answers = sys.stdout
     for line in sys.stdin:
         request = json.loads(line)
         pid = os.fork()
         if pid == 0:
             sys.stdin.close()
+            answers.close()
             return _run_script(request)
         answers.write(json.dumps({"pid": pid}) + "\n")
         answers.flush()

@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import json
 import shlex
+import shutil
 from pathlib import Path
 
 import pytest
@@ -185,12 +186,18 @@ def test_a_seed_continued_with_other_settings_is_noted(tmp_path):
     summary = json.loads((folder / "summary.json").read_text())
     resumes = [
         {"frames": 2000, "changes": {"collector.total_frames": [2000, 5000], "threads": [1, 2]}},  # operational
+        {"frames": 2500, "changes": {"optim.cudagraphs": [False, True], "collector.backend_options.x": [1, 2]}},
+        # `threads_per_worker` is not `threads`: a key is covered by the keys above it, not by a prefix
         {"frames": 3000, "changes": {"optim.lr": [0.001, 0.0005], "logger.backends": [["csv"], ["wandb"]]}},
+        {"frames": 4000, "changes": {"threads_per_worker": [1, 2]}},
     ]
     (folder / "summary.json").write_text(json.dumps({**summary, "resumes": resumes}))
     text, _ = run_aggregate([tmp_path], tmp_path / "out")
     notes = [line for line in text.splitlines() if "went on from" in line]
-    assert notes == ["- Hopper-v4 / paper / sail: seed 1 went on from frame 3000 with optim.lr 0.001 -> 0.0005"]
+    assert notes == [
+        "- Hopper-v4 / paper / sail: seed 1 went on from frame 3000 with optim.lr 0.001 -> 0.0005",
+        "- Hopper-v4 / paper / sail: seed 1 went on from frame 4000 with threads_per_worker 1 -> 2",
+    ]
 
 
 def test_frames_to_teacher_from_the_curve_when_the_summary_lacks_it(tmp_path):
@@ -353,6 +360,13 @@ def test_matrix_layout_labels_runs_and_lists_missing_cells(tmp_path):
     # Aggregating one teacher's folder expects that teacher's runs only.
     text, _ = run_aggregate([out / "paper"], tmp_path / "report_paper")
     assert "shipped" not in text.split("## Missing")[1]
+    # ... and one method's folder that method's runs only (it has them all: nothing is missing).
+    write_run(
+        out / "paper" / "Hopper-v4" / "td3_delayed" / "seed0", algo="td3_delayed", teacher_path=str(tmp_path / "p.npz")
+    )
+    text, _ = run_aggregate([out / "paper" / "Hopper-v4" / "sail"], tmp_path / "report_sail")
+    assert text.split("## Missing or unfinished runs")[1].split("##")[0].strip() == "None."
+    shutil.rmtree(out / "paper" / "Hopper-v4" / "td3_delayed")
     # Another env with its own teacher file (a second call): its cells only are expected.
     run_matrix.record_matrix(out, [run_matrix.Teacher("walker", tmp_path / "w.npz")], ["dac"], ["Walker2d-v4"], [1])
     run_matrix.record_matrix(out, teachers[:1], ["sail", "td3_delayed"], ["Hopper-v4"], [0])  # a rerun: no change
@@ -578,8 +592,9 @@ def test_readme_section_in_the_papers_format(tmp_path):
         )
         summary = json.loads((folder / "summary.json").read_text())
         provenance = {"cpu_model": "Test CPU", "torch_threads": 1}
+        resumes = [{"frames": 3000, "changes": {"optim.lr": [1e-3, 5e-4]}}] if (method, seed) == ("sail", 1) else []
         (folder / "summary.json").write_text(
-            json.dumps({**summary, "frames_per_second": 5000 / 3600, "provenance": provenance})
+            json.dumps({**summary, "frames_per_second": 5000 / 3600, "provenance": provenance, "resumes": resumes})
         )
     readme = tmp_path / "README.md"
     readme.write_text(
@@ -605,7 +620,11 @@ def test_readme_section_in_the_papers_format(tmp_path):
     ) in text
     figure = tmp_path / "report" / "results_paper.png"
     assert figure.read_bytes()[:8] == PNG_MAGIC and "](report/results_paper.png)" in text
-    readme.write_text("no markers\n")
-    with pytest.raises(ValueError, match="lacks the lines <!-- RESULTS: START -->"):
-        run_aggregate([campaign], tmp_path / "report", readme=readme)
-    assert readme.read_text() == "no markers\n"  # nothing written
+    assert "Per run, the mean of its last 5 deterministic evaluations (10 episodes each); per cell" in text
+    # the seed continued with another learning rate: the README points to the report's notes
+    assert "Notes on these runs (1: fewer evaluations, other settings): [the report](report/results.md)." in text
+    for broken in ("no markers\n", "<!-- RESULTS: END -->\n<!-- RESULTS: START -->\n"):
+        readme.write_text(broken)
+        with pytest.raises(ValueError, match="must have the line <!-- RESULTS: START -->, then the line"):
+            run_aggregate([campaign], tmp_path / "report", readme=readme)
+        assert readme.read_text() == broken  # nothing written

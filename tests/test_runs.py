@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.metadata
 import json
 import subprocess
 import sys
@@ -68,6 +69,22 @@ def test_resume_false_starts_a_new_folder_and_refuses_one_with_a_checkpoint(tmp_
     with pytest.raises(FileExistsError, match="already holds a run .* resume=true"):
         resume_mode(tmp_path / "run", False, 1000)
     assert resume_mode(tmp_path / "run", True, 1000) is True
+    # logs without a checkpoint (a run that stopped before its first one): a fresh run would append to them
+    log = write(tmp_path / "early" / "logs" / "scalars" / "eval" / "return.csv", "500,1.0\n")
+    with pytest.raises(FileExistsError, match="logs of a run that stopped before its first checkpoint.*resume=auto"):
+        resume_mode(tmp_path / "early", False, 1000)
+    assert log.read_text() == "500,1.0\n"
+
+
+def test_resume_auto_skips_a_finished_run_only_if_it_trained_with_this_config(tmp_path):
+    write(tmp_path / "done" / "summary.json", json.dumps({"frames": 3000}))
+    write(tmp_path / "done" / "config.yaml", "seed: 0\nresume: false\neval:\n  episodes: 10\nalgo:\n  alpha: 0.5\n")
+    same = {"seed": 0, "resume": "auto", "eval": {"episodes": 5}, "algo": {"alpha": 0.5}}  # only allowed keys differ
+    assert resume_mode(tmp_path / "done", "auto", 3000, config=same) is None
+    other = {**same, "algo": {"alpha": 0.0}}
+    with pytest.raises(ValueError, match=r"finished run trained with algo.alpha=0.5 \(this run: 0.0\)"):
+        resume_mode(tmp_path / "done", "auto", 3000, config=other)
+    assert resume_mode(tmp_path / "done", "auto", 3000) is None  # no config given: not compared
 
 
 def test_resume_auto_skips_finished_continues_checkpointed_and_restarts_the_rest(tmp_path):
@@ -195,6 +212,36 @@ def test_start_or_resume_keeps_the_configured_lr_drops_the_summary_and_writes_th
     assert (run_dir / "config.yaml").read_text() == "seed: 0\noptim:\n  lr: 0.0005\ndir: 0\n"  # resolved
 
 
+def test_a_setting_covers_the_keys_below_it():
+    allowed = ("eval", "collector.backend_options", "optim.lr")
+    for key in ("eval", "eval.episodes", "collector.backend_options", "collector.backend_options.timeout", "optim.lr"):
+        assert runs._may_change(key, allowed), key
+    for key in ("evaluation", "collector.backend", "optim.lr_decay", "optim"):
+        assert not runs._may_change(key, allowed), key
+
+
+def test_start_or_resume_takes_the_configured_optimizer_settings_and_places_the_step(tmp_path):
+    # saved by a plain Adam after a step; resumed with fused=True (as with CUDA graphs: capturable=True), whose
+    # step must be a float32 tensor on the parameter's device: the saved group's flags would keep the old kind
+    run_dir = tmp_path / "run"
+    run = new_run(**identity())
+    layer = torch.nn.Linear(2, 1)
+    optimizer = torch.optim.Adam(layer.parameters(), lr=1e-3)
+    layer(torch.ones(1, 2)).sum().backward()
+    optimizer.step()
+    Checkpoint(run=run, layer=layer, optim=optimizer).save(checkpoint_dir(run_dir))
+    run, layer = new_run(**identity()), torch.nn.Linear(2, 1)
+    optimizer = torch.optim.Adam(layer.parameters(), lr=5e-4, fused=True)
+    start_or_resume(Checkpoint(run=run, layer=layer, optim=optimizer), run_dir, run, True, optimizers=[optimizer])
+    group = optimizer.param_groups[0]
+    assert group["fused"] is True and group["lr"] == 5e-4
+    step = optimizer.state[layer.weight]["step"]
+    assert step.dtype == torch.float32 and step.device == layer.weight.device and step.item() == 1.0
+    layer(torch.ones(1, 2)).sum().backward()
+    optimizer.step()  # the fused kernel accepts the restored state
+    assert optimizer.state[layer.weight]["step"].item() == 2.0
+
+
 def test_start_or_resume_offline_keeps_logs_and_summary(tmp_path):
     run_dir = tmp_path / "run"
     saved_run(run_dir, frames=0)
@@ -223,6 +270,13 @@ def test_truncate_scalar_logs_rewrites_only_the_files_with_later_rows(tmp_path):
     assert truncate_scalar_logs(tmp_path, 1000) == [late]
     assert late.read_text() == "500,0.5\n1000,0.6\n" and early.stat().st_mtime_ns == stamp
     assert truncate_scalar_logs(tmp_path / "nothing", 0) == []
+
+
+def test_truncate_scalar_logs_drops_the_rows_a_crash_damaged(tmp_path):
+    # a NUL-filled row (power loss) and a last row cut mid-write: the resumed run's next row would be glued to it
+    damaged = write(tmp_path / "logs" / "scalars" / "eval" / "return.csv", "500,1.0\n\x00\x00\x00\n1000,2.0\n1500,3")
+    assert truncate_scalar_logs(tmp_path, 2000) == [damaged]
+    assert damaged.read_text() == "500,1.0\n1000,2.0\n"
 
 
 def test_last_checkpoint_names_the_saved_frame(tmp_path):
@@ -294,6 +348,17 @@ def test_write_summary_adds_memory_curve_and_provenance(tmp_path):
 def test_provenance_outside_a_checkout(tmp_path):
     code = runs.provenance(tmp_path)
     assert code["commit"] is None and code["dirty"] is None and code["python"]
+
+
+def test_provenance_of_a_package_that_is_not_installed(monkeypatch, tmp_path):
+    def version(name):
+        if name == "torchrl_sail":
+            raise importlib.metadata.PackageNotFoundError(name)
+        return "1.0"
+
+    monkeypatch.setattr(importlib.metadata, "version", version)
+    versions = runs.provenance(tmp_path)["versions"]
+    assert versions["torchrl_sail"] is None and versions["torch"] == "1.0"  # the summary is still written
 
 
 def test_plot_learning_curve_reads_the_logs(tmp_path):

@@ -82,7 +82,7 @@ COLLECTED_SCALARS = "scalars.csv"
 # The run's identity entries and the config keys they come from (named in resume errors).
 _IDENTITY_KEYS = {"env": "env", "algo": "algo", "seed": "seed", "teacher": "teacher.path"}
 
-#: The config keys a resumed run may change (a trailing ``.`` covers a whole section): its length,
+#: The config keys a resumed run may change (each with the keys below it): its length,
 #: logging, evaluation, checkpoints, hardware and learning rates (a diverged run goes on with a
 #: lower one). Any other change would make one curve of two configs, or not fit the checkpoint.
 RESUME_MAY_CHANGE = (
@@ -91,9 +91,9 @@ RESUME_MAY_CHANGE = (
     "collector.num_workers",
     "collector.backend",
     "collector.backend_options",
-    "logger.",
-    "eval.",
-    "checkpoint.",
+    "logger",
+    "eval",
+    "checkpoint",
     "threads",
     "device",
     "optim.implementation",
@@ -126,25 +126,39 @@ def is_finished(summary: dict, total_frames: int) -> bool:
     return bool(summary.get("offline")) or summary.get("frames", 0) >= total_frames
 
 
-def resume_mode(run_dir: Path, resume: bool | str, total_frames: int) -> bool | None:
+def resume_mode(
+    run_dir: Path,
+    resume: bool | str,
+    total_frames: int,
+    *,
+    config=None,
+    may_change: Iterable[str] = RESUME_MAY_CHANGE,
+) -> bool | None:
     """Whether this run continues the one in ``run_dir``: ``True``, ``False``, or ``None`` to skip it.
 
-    ``resume=False`` refuses a folder that holds a checkpoint (a run is never overwritten),
-    ``resume=True`` needs one (:func:`restore_run` says so). ``resume="auto"`` (for matrices that
-    must survive interruption) skips a run whose ``summary.json`` shows its budget done
-    (:func:`is_finished`), continues one with a checkpoint, and starts the rest afresh, first
-    removing the logs of a run that stopped before its first checkpoint (nothing can continue
-    them, and a fresh run would append to them).
+    ``resume=False`` refuses a folder that holds a checkpoint or logs (a run is never
+    overwritten, and TorchRL's CSV logger would append to the old rows), ``resume=True`` needs a
+    checkpoint (:func:`restore_run` says so). ``resume="auto"`` (for matrices that must survive
+    interruption) skips a run whose ``summary.json`` shows its budget done (:func:`is_finished`),
+    continues one with a checkpoint, and starts the rest afresh, first removing the logs of a run
+    that stopped before its first checkpoint (nothing can continue them). A finished run is
+    skipped only if it was trained with ``config`` (an OmegaConf config or a plain dict; its
+    ``config.yaml`` may differ from it in ``may_change`` keys only): a matrix rerun with another
+    setting into the same folders must not report the old results as the new ones.
 
     Args:
         run_dir (Path): the run folder.
         resume (bool or "auto"): the script's ``resume=`` setting.
         total_frames (int): the run's budget (``collector.total_frames``).
+        config (optional): this run's config, compared with a finished run's ``config.yaml``.
+        may_change (iterable of str): the keys that may differ (:data:`RESUME_MAY_CHANGE`).
 
     Raises:
-        FileExistsError: ``resume=False`` on a folder with a checkpoint.
+        FileExistsError: ``resume=False`` on a folder with a checkpoint or logs.
         FileNotFoundError: ``resume="auto"`` asked for more frames than a finished run without a
             checkpoint holds.
+        ValueError: ``resume="auto"`` on a finished run trained with another config (each
+            differing key named with both values).
     """
     run_dir = Path(run_dir)
     checkpoint, summary = checkpoint_dir(run_dir), run_dir / SUMMARY
@@ -152,6 +166,7 @@ def resume_mode(run_dir: Path, resume: bool | str, total_frames: int) -> bool | 
         if summary.exists():
             done = json.loads(summary.read_text())
             if is_finished(done, total_frames):
+                _refuse_other_config(run_dir, config, may_change)
                 return None
             if not checkpoint.exists():
                 raise FileNotFoundError(
@@ -167,7 +182,31 @@ def resume_mode(run_dir: Path, resume: bool | str, total_frames: int) -> bool | 
             f"{run_dir} already holds a run (checkpoint/). Continue it with resume=true "
             f"(or resume=auto), or choose another folder with hydra.run.dir=..."
         )
+    if (run_dir / "logs").exists() and not resume:
+        raise FileExistsError(
+            f"{run_dir} holds the logs of a run that stopped before its first checkpoint (logs/, no "
+            f"checkpoint/). Start it afresh with resume=auto (which removes them), or choose another "
+            f"folder with hydra.run.dir=..."
+        )
     return resume
+
+
+def _refuse_other_config(run_dir: Path, config, may_change: Iterable[str]) -> None:
+    """Raises if the finished run in ``run_dir`` was trained with another config than ``config``."""
+    if config is None or not (run_dir / CONFIG).exists():
+        return
+    from omegaconf import DictConfig, OmegaConf
+
+    if isinstance(config, DictConfig):
+        config = OmegaConf.to_container(config, resolve=True, enum_to_str=True)
+    saved = OmegaConf.to_container(OmegaConf.load(run_dir / CONFIG))
+    changes = config_changes(saved, config)
+    refused = [f"{k}={o!r} (this run: {n!r})" for k, (o, n) in changes.items() if not _may_change(k, may_change)]
+    if refused:
+        raise ValueError(
+            f"resume=auto: {run_dir} holds a finished run trained with " + ", ".join(refused) + "; it would "
+            "be skipped and its results taken for this config. Use the same settings, or another hydra.run.dir."
+        )
 
 
 def config_changes(saved: Mapping, current: Mapping) -> dict[str, tuple]:
@@ -191,7 +230,8 @@ def config_changes(saved: Mapping, current: Mapping) -> dict[str, tuple]:
 
 
 def _may_change(key: str, allowed: Iterable[str]) -> bool:
-    return any(key == a or (a.endswith(".") and key.startswith(a)) for a in allowed)
+    """Whether the dotted ``key`` is one of ``allowed`` or below one (``eval`` covers ``eval.episodes``)."""
+    return any(key == a or key.startswith(a + ".") for a in allowed)
 
 
 def new_run(*, env: str, algo: str, seed: int, teacher: str | None) -> dict:
@@ -253,9 +293,9 @@ def start_or_resume(
     checkpoint holds the config it was trained with, and a resume is checked against it
     (:func:`restore_run`). Only a resume that
     passed its checks drops the run's old ``summary.json`` (a continued run is unfinished until
-    it ends). The ``optimizers`` keep the learning rates they were built with from the config:
-    a run continued with another learning rate (e.g. after a divergence) uses it, not the saved
-    one.
+    it ends). The ``optimizers`` keep the settings they were built with from the config (learning
+    rate, ``capturable``, ``fused``, ...; the saved state holds the old ones): a run continued with
+    another learning rate (e.g. after a divergence), or with CUDA graphs, uses them.
     """
     run_dir = Path(run_dir)
     current = None
@@ -265,16 +305,37 @@ def start_or_resume(
         current = OmegaConf.to_container(config, resolve=True, enum_to_str=True)
         current.pop("resume", None)  # how this process started, not how the run trains
     if resuming:
-        configured = [[group["lr"] for group in optimizer.param_groups] for optimizer in optimizers]
+        optimizers = list(optimizers)
+        configured = [[_settings(group) for group in optimizer.param_groups] for optimizer in optimizers]
         restore_run(checkpoint, run_dir, run, truncate_logs=truncate_logs, config=current, may_change=may_change)
-        for optimizer, lrs in zip(optimizers, configured):
-            for group, lr in zip(optimizer.param_groups, lrs):
-                group["lr"] = lr
+        for optimizer, settings in zip(optimizers, configured):
+            for group, setting in zip(optimizer.param_groups, settings):
+                group.update(setting)
+            _place_steps(optimizer)
         if truncate_logs:
             (run_dir / SUMMARY).unlink(missing_ok=True)
     if config is not None:
         run["config"] = current
         OmegaConf.save(config, run_dir / CONFIG, resolve=True)
+
+
+def _settings(group: dict) -> dict:
+    """An optimizer param group's settings (everything but its parameters)."""
+    return {key: value for key, value in group.items() if key != "params"}
+
+
+def _place_steps(optimizer) -> None:
+    """Puts each tensor ``step`` in the state where the group's settings want it, as torch's own
+    ``load_state_dict`` does for the saved settings: on the parameter's device in float32 for
+    ``capturable`` or ``fused`` groups, on the CPU otherwise."""
+    for group in optimizer.param_groups:
+        on_device = group.get("capturable", False) or group.get("fused", False)
+        for param in group["params"]:
+            step = optimizer.state.get(param, {}).get("step")
+            if torch.is_tensor(step):
+                device = param.device if on_device else torch.device("cpu")
+                dtype = torch.float32 if on_device else step.dtype
+                optimizer.state[param]["step"] = step.to(device=device, dtype=dtype)
 
 
 def restore_run(
@@ -314,9 +375,11 @@ def restore_run(
     this = dict(run["identity"])
     try:
         checkpoint.load(path, components=["run"])
-    except Exception as err:  # a damaged folder
+    except Exception as err:  # a damaged folder, or one this version cannot read
         raise ValueError(
-            f"checkpoint {path} is unreadable ({type(err).__name__}: {err}); delete it to start over."
+            f"checkpoint {path} is unreadable ({type(err).__name__}: {err}). If it is damaged (an interrupted "
+            f"save, a full disk), move it away to start the run over; if it was written by another version of "
+            f"torchrl_sail or TorchRL, resume with that version."
         ) from err
     for key, saved in run["identity"].items():
         if saved != this[key]:
@@ -363,17 +426,36 @@ def _config_changes_on_resume(path: Path, saved, config: Mapping, may_change: It
 
 
 def truncate_scalar_logs(run_dir: Path, frames: int) -> list[Path]:
-    """Drops the rows logged after ``frames`` from every CSV of ``<run_dir>/logs/scalars``; returns
-    the files it rewrote (each atomically).
+    """Drops the rows logged after ``frames`` from every CSV of ``<run_dir>/logs/scalars``, and the
+    rows a crash left damaged (unparsable, or a last line without its newline: the resumed run's
+    next row would be glued to it); returns the files it rewrote (each atomically).
+
+    Examples:
+        >>> import tempfile
+        >>> run_dir = Path(tempfile.mkdtemp())
+        >>> log = run_dir / "logs" / "scalars" / "eval" / "return.csv"
+        >>> log.parent.mkdir(parents=True)
+        >>> _ = log.write_text("1000,5.0\\n2000,7.5\\n3000,9.0\\n4000,1")  # killed mid-row at 4000
+        >>> _ = truncate_scalar_logs(run_dir, 2000)
+        >>> log.read_text()
+        '1000,5.0\\n2000,7.5\\n'
     """
     truncated = []
     for path in sorted((Path(run_dir) / SCALARS).glob("**/*.csv")):
-        lines = path.read_text().splitlines(keepends=True)
-        kept = [line for line in lines if line.strip() and int(float(line.split(",")[0])) <= frames]
+        lines = path.read_text(errors="replace").splitlines(keepends=True)
+        kept = [line for line in lines if line.endswith("\n") and _logged_at(line) <= frames]
         if len(kept) != len(lines):
             write_atomic(path, "".join(kept))
             truncated.append(path)
     return truncated
+
+
+def _logged_at(line: str) -> float:
+    """A CSV row's frame (its first field); infinity for a damaged row, which no frame keeps."""
+    try:
+        return float(line.split(",", 1)[0])
+    except ValueError:
+        return float("inf")
 
 
 def last_checkpoint(run_dir: Path, run: dict) -> str | None:
@@ -558,8 +640,7 @@ def provenance(code_dir: Path | None = None) -> dict:
     commit = git("rev-parse", "HEAD")
     status = git("status", "--porcelain", "--untracked-files=no") if commit else None
     versions = {
-        name: importlib.metadata.version(name)
-        for name in ("torchrl_sail", "torch", "torchrl", "tensordict", "gymnasium", "mujoco")
+        name: _version(name) for name in ("torchrl_sail", "torch", "torchrl", "tensordict", "gymnasium", "mujoco")
     }
     return {
         "commit": commit,
@@ -570,6 +651,14 @@ def provenance(code_dir: Path | None = None) -> dict:
         "cpu_model": cpu_model(),
         "torch_threads": torch.get_num_threads(),
     }
+
+
+def _version(package: str) -> str | None:
+    """The installed version of ``package`` (``None`` when it runs from a checkout without being installed)."""
+    try:
+        return importlib.metadata.version(package)
+    except importlib.metadata.PackageNotFoundError:
+        return None
 
 
 def cpu_model() -> str | None:
