@@ -900,7 +900,13 @@ def readme_section(groups: dict, teacher: str, figure: str, report: str = "resul
     episodes = "/".join(str(n) for n in sorted({run.eval_episodes for run in runs} - {None}))
     shown = [group for (e, t, _), group in groups.items() if t == teacher]
     offline = sorted({group.method for group in shown if all(run.offline for run in group.runs)})
-    notes = [note for group in shown for note in group_notes(group)]
+    # an offline method's one evaluation is said above: its headline notes would only repeat it
+    notes = [
+        note
+        for group in shown
+        for note in group_notes(group)
+        if group.method not in offline or note not in headline_notes(group)
+    ]
     text = [
         README_START,
         "",

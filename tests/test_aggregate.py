@@ -596,6 +596,21 @@ def test_readme_section_in_the_papers_format(tmp_path):
         (folder / "summary.json").write_text(
             json.dumps({**summary, "frames_per_second": 5000 / 3600, "provenance": provenance, "resumes": resumes})
         )
+    # offline BC: its one evaluation, said once in the section's first line (no note that repeats it)
+    bc = write_run(
+        campaign / "paper" / "Hopper-v4" / "bc" / "seed0",
+        algo="bc",
+        evals=[(0, 40.0)],
+        teacher_path="/teachers/Hopper-v4.npz",
+        offline=True,
+        frames=0,
+        total_frames=5000,
+        eval={"episodes": 10, "every_frames": 1000},
+    )
+    summary = json.loads((bc / "summary.json").read_text())
+    (bc / "summary.json").write_text(
+        json.dumps({**summary, "provenance": {"cpu_model": "Test CPU", "torch_threads": 1}})
+    )
     readme = tmp_path / "README.md"
     readme.write_text(
         "# Project\n\n## Results\n\nBy hand.\n\n<!-- RESULTS: START -->\nold\n<!-- RESULTS: END -->\n\n## Tests\n"
@@ -620,7 +635,11 @@ def test_readme_section_in_the_papers_format(tmp_path):
     ) in text
     figure = tmp_path / "report" / "results_paper.png"
     assert figure.read_bytes()[:8] == PNG_MAGIC and "](report/results_paper.png)" in text
-    assert "Per run, the mean of its last 5 deterministic evaluations (10 episodes each); per cell" in text
+    assert (
+        "Per run, the mean of its last 5 deterministic evaluations (10 episodes each); offline (bc), its one "
+        "evaluation after training; per cell" in text
+    )
+    assert "| bc | - | 40.0 (1 seed) |" in text
     # the seed continued with another learning rate: the README points to the report's notes
     assert "Notes on these runs (1: fewer evaluations, other settings): [the report](report/results.md)." in text
     for broken in ("no markers\n", "<!-- RESULTS: END -->\n<!-- RESULTS: START -->\n"):
