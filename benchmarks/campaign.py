@@ -75,6 +75,8 @@ DIAGNOSTICS = (
     "d/reward_agent_std",
     "d/logit_teacher",
     "d/logit_agent",
+    "d/logit_teacher_std",
+    "d/logit_agent_std",
     "d/grad_penalty",
     "d/skipped",
     "sail/q_mean",

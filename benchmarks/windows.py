@@ -11,7 +11,7 @@ log; on the 1000-step envs, HalfCheetah and Swimmer, every episode alone), the p
 ``C`` and the promotions so far (their maximum in the window), the mean teacher share alpha,
 the mean D reward of the critic's batches (under the method's ``algo.reward``), the means of
 the discriminator's accuracy, ``-log(1 - D)`` (SAIL's reward) and mean logit on teacher / agent
-rows of its own batches, the agent rows' ``-log(1 - D)`` spread (std), the critic's mean Q, the
+rows of its own batches, the agent rows' spread (std) of ``-log(1 - D)`` and of the logit, the critic's mean Q, the
 gradient penalty and the share of D steps ``optim.discriminator.max_accuracy`` skipped. A tag a
 run did not log prints ``-``.
 """
@@ -40,6 +40,7 @@ COLUMNS = (
     ("-log(1-D) agent std", "d/reward_agent_std", mean),
     ("logit teacher", "d/logit_teacher", mean),
     ("logit agent", "d/logit_agent", mean),
+    ("logit agent std", "d/logit_agent_std", mean),
     ("Q", "sail/q_mean", mean),
     ("GP", "d/grad_penalty", mean),
     ("D skipped", "d/skipped", mean),

@@ -304,6 +304,8 @@ class TestDiscriminatorLoss:
         assert out["logit_agent"].item() == pytest.approx(-1.25, rel=1e-6)
         assert out["reward_teacher_std"].item() == pytest.approx(std(rt), rel=1e-5)
         assert out["reward_agent_std"].item() == pytest.approx(std(ra), rel=1e-5)
+        assert out["logit_teacher_std"].item() == pytest.approx(std([3.0, -5.0, -3.0]), rel=1e-5)
+        assert out["logit_agent_std"].item() == pytest.approx(1.25, rel=1e-6)  # logits -2.5 and 0
 
     def test_training_step_advances_spectral_norm_once(self):
         torch.manual_seed(0)

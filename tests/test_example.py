@@ -62,6 +62,7 @@ def test_smoke_hopper_outputs(tmp_path, teacher_dir):
         "d/accuracy_teacher",
         "d/accuracy_agent",
         "d/loss_discriminator",
+        "d/logit_agent_std",
         "sail/loss_qvalue",
         "sail/d_reward_mean",
         "time/fps",

@@ -21,6 +21,7 @@ def test_windows_reduce_each_tag_over_its_frames(tmp_path):
     write(tmp_path, "train/dense_return", [(5, 4.0), (15, 7.0), (25, -1.0)])
     write(tmp_path, "teacher/threshold", [(20, 5.0), (21, 6.0)])
     write(tmp_path, "d/accuracy_agent", [(20, 0.5), (20, 1.0)])
+    write(tmp_path, "d/logit_agent_std", [(20, 2.0), (40, 1.0)])  # the logit reward's spread on agent rows
     table = windows.windows(tmp_path, 20)
     assert [row["frames"] for row in table] == [20, 40]  # (0, 20] and (20, 40]: frame 20 is in the first
     first, second = table
@@ -28,6 +29,7 @@ def test_windows_reduce_each_tag_over_its_frames(tmp_path):
     assert first["train max"] == 7.0 and second["train max"] == -1.0  # maxima
     assert first["C"] == 5.0 and second["C"] == 6.0
     assert first["D acc agent"] == 0.75 and math.isnan(second["D acc agent"])
+    assert first["logit agent std"] == 2.0 and second["logit agent std"] == 1.0
     assert math.isnan(first["GP"])  # not logged
     lines = windows.markdown(table, 20).splitlines()
     assert lines[0].startswith(

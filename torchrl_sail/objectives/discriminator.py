@@ -117,9 +117,11 @@ class DiscriminatorLoss(LossModule):
     ``d_teacher``/``d_agent`` (mean ``σ(ℓ)``), ``entropy`` (mean ``H``),
     ``grad_penalty`` (raw GP) and ``reward_teacher``/``reward_agent`` (mean
     ``softplus(ℓ) = -log(1 - σ(ℓ))``, SAIL's and GAIL's reward), ``reward_teacher_std`` /
-    ``reward_agent_std`` (their spread over the rows) and ``logit_teacher`` / ``logit_agent``
-    (mean logits: how far past saturation D is), all on the clean features (``entropy`` is the
-    loss term's, on the noisy ones).
+    ``reward_agent_std`` (their spread over the rows), ``logit_teacher`` / ``logit_agent``
+    (mean logits: how far past saturation D is, and the mean of the logit reward
+    ``log D - log(1 - D)``) and ``logit_teacher_std`` / ``logit_agent_std`` (their spread: how
+    much the logit reward tells one row from another), all on the clean features (``entropy``
+    is the loss term's, on the noisy ones).
 
     This class is compatible with non-tensordict based modules too: the entries can
     be passed as keyword arguments named after :attr:`in_keys` and the outputs come
@@ -198,6 +200,8 @@ class DiscriminatorLoss(LossModule):
         "reward_agent_std",
         "logit_teacher",
         "logit_agent",
+        "logit_teacher_std",
+        "logit_agent_std",
     ]
 
     def __init__(
@@ -327,6 +331,8 @@ class DiscriminatorLoss(LossModule):
                 "reward_agent_std": reward_agent.std(correction=0),
                 "logit_teacher": logits_teacher.mean(),
                 "logit_agent": logits_agent.mean(),
+                "logit_teacher_std": logits_teacher.std(correction=0),
+                "logit_agent_std": logits_agent.std(correction=0),
             }
         return TensorDict(
             {
