@@ -891,11 +891,22 @@ def readme_section(groups: dict, teacher: str, figure: str, report: str = "resul
     budgets = sorted({total_frames(run) for run in runs if not run.offline and total_frames(run)})
     cpus = sorted({((run.summary or {}).get("provenance") or {}).get("cpu_model") or "unknown" for run in runs})
     threads = sorted({((run.summary or {}).get("provenance") or {}).get("torch_threads") for run in runs} - {None})
-    hours = sum(
-        total_frames(run) / run.summary["frames_per_second"] / 3600
-        for run in runs
-        if not run.offline and (run.summary or {}).get("frames_per_second")
-    )
+    # each run's recorded wall time; for runs without one (earlier versions), its frames over its
+    # frames per second since its last start
+    trained = [run for run in runs if not run.offline and run.summary]
+    recorded = [run.summary["wall_seconds"] for run in trained if run.summary.get("wall_seconds") is not None]
+    estimated = [
+        total_frames(run) / run.summary["frames_per_second"]
+        for run in trained
+        if run.summary.get("wall_seconds") is None and run.summary.get("frames_per_second")
+    ]
+    hours = (sum(recorded) + sum(estimated)) / 3600
+    if not estimated:
+        how = "each run's recorded training time"
+    elif not recorded:
+        how = "estimated: each run's frames over its frames per second"
+    else:
+        how = f"recorded per run; estimated for {len(estimated)} runs as their frames over their frames per second"
     commands = [cell_command(group) for env in envs for group in pair_groups(groups, env, teacher)]
     episodes = "/".join(str(n) for n in sorted({run.eval_episodes for run in runs} - {None}))
     shown = [group for (e, t, _), group in groups.items() if t == teacher]
@@ -915,7 +926,7 @@ def readme_section(groups: dict, teacher: str, figure: str, report: str = "resul
         + "; per cell, the mean ± std",
         f"over seeds. Budget per run: {', '.join(frames_label(b) + ' frames' for b in budgets)}. CPUs: "
         f"{', '.join(cpus)}, {'/'.join(map(str, threads))} torch thread per run; wall time about {hours:.0f} h "
-        "in all (estimated: each run's frames over its frames per second).",
+        f"in all ({how}).",
         "",
         *lines,
         "",

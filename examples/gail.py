@@ -70,7 +70,7 @@ from utils import (
 from video import log_video, make_render_env
 
 from torchrl_sail import TRANSITION_KEYS, DivergenceCheck, MixedReplayBuffer, observation_normalizer
-from torchrl_sail.runs import checkpoint_dir, last_checkpoint, start_or_resume, train_timing
+from torchrl_sail.runs import checkpoint_dir, last_checkpoint, start_or_resume, train_timing, wall_time
 
 register_config_schema()  # the typed schema conf/config.yaml extends: Hydra checks every value against it
 
@@ -156,7 +156,9 @@ def main(cfg):  # noqa: F821
 
     def save(frames: int) -> None:
         check(metrics, frames)
-        run.update(frames=frames, loggers=logger_states(loggers))
+        run.update(
+            frames=frames, loggers=logger_states(loggers), wall_seconds=wall_time(wall_before, start, time.time())
+        )
         checkpoint.save(checkpoint_dir(run_dir))
 
     render_env = make_render_env(cfg, cfg.seed + 30_000, cfg.eval.video_size) if cfg.eval.video_every_frames else None
@@ -170,6 +172,7 @@ def main(cfg):  # noqa: F821
     )
     pbar = tqdm.tqdm(total=cfg.collector.total_frames, initial=frames, unit="frames")
     start, start_frames, clock = time.time(), frames, (time.time(), frames)
+    wall_before = run["wall_seconds"]  # the wall time of the run's earlier starts
     for data in collector if collector.total_frames else ():
         before, frames = frames, frames + data.numel()
         metrics = {}
@@ -237,6 +240,7 @@ def main(cfg):  # noqa: F821
         best_eval_return=max(evals) if evals else None,
         passed_teacher_at_frame=run["passed_teacher_at"],
         resumes=run["resumes"],
+        wall_seconds=run["wall_seconds"],
         num_promoted=0,
         frames_per_second=(frames - start_frames) / max(end - start, 1e-9),
         **train_timing(clock, end=end, frames=frames),

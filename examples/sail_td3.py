@@ -66,7 +66,7 @@ from video import log_video, make_render_env
 
 from torchrl_sail import TRANSITION_KEYS, DivergenceCheck, MixedReplayBuffer
 from torchrl_sail._compat import timeit
-from torchrl_sail.runs import checkpoint_dir, last_checkpoint, start_or_resume, train_timing
+from torchrl_sail.runs import checkpoint_dir, last_checkpoint, start_or_resume, train_timing, wall_time
 
 register_config_schema()  # the typed schema conf/config.yaml extends: Hydra checks every value against it
 
@@ -149,7 +149,10 @@ def main(cfg):  # noqa: F821
 
     def save(frames: int, gradient_steps: int) -> None:
         divergence(metrics, frame=frames, checkpoint=last_checkpoint(run_dir, run))
-        run.update(frames=frames, gradient_steps=gradient_steps, loggers=logger_states(loggers))
+        wall_seconds = wall_time(wall_before, start, time.time())
+        run.update(
+            frames=frames, gradient_steps=gradient_steps, loggers=logger_states(loggers), wall_seconds=wall_seconds
+        )
         checkpoint.save(checkpoint_dir(run_dir))
 
     o, d, warmup = cfg.optim, cfg.optim.discriminator, cfg.collector.init_random_frames
@@ -157,6 +160,7 @@ def main(cfg):  # noqa: F821
     collector = make_collector(cfg, env, exploration_policy, frames=frames)
     pbar = tqdm.tqdm(total=cfg.collector.total_frames, initial=frames, unit="frames")
     start, start_frames, last_log, metrics = time.time(), frames, frames, {}
+    wall_before = run["wall_seconds"]  # the wall time of the run's earlier starts
     train_clock = None  # (time, frames) when warm-up ended: the start of the timed part
     try:
         batches = iter(collector if collector.total_frames else ())  # 0 frames left: a finished run
@@ -296,6 +300,7 @@ def main(cfg):  # noqa: F821
         best_eval_return=max(evals) if evals else None,
         passed_teacher_at_frame=run["passed_teacher_at"],
         resumes=run["resumes"],
+        wall_seconds=run["wall_seconds"],
         num_promoted=teacher.writer.num_promoted,
         teacher_threshold=teacher.writer.threshold,
         frames_per_second=(frames - start_frames) / max(end - start, 1e-9),

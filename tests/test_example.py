@@ -145,8 +145,11 @@ def test_resume_restores_state(tmp_path, teacher_dir):
     assert proc.returncode != 0 and "resume=true" in proc.stderr
 
     # Resuming with nothing left to collect restores and re-saves the same state.
+    first_wall = json.loads((run_dir / "summary.json").read_text())["wall_seconds"]
     run(run_dir, *common, "collector.total_frames=2000", "resume=true")
     after = saved(run_dir, *names)
+    walls = before["run"].pop("wall_seconds"), after["run"].pop("wall_seconds")
+    assert walls[0] == first_wall and walls[1] > walls[0] > 0  # each start's training loop adds to it
     assert after["run"] == before["run"] and before["run"]["frames"] == 2000
     torch.testing.assert_close(after["replay"], before["replay"], rtol=0, atol=0)
     teachers = before["teacher"].writer, after["teacher"].writer
@@ -166,7 +169,7 @@ def test_resume_restores_state(tmp_path, teacher_dir):
     # Resuming with a larger budget continues the same curve.
     run(run_dir, *common, "collector.total_frames=3000", "resume=true")
     summary = json.loads((run_dir / "summary.json").read_text())
-    assert summary["frames"] == 3000 and summary["gradient_steps"] == 150
+    assert summary["frames"] == 3000 and summary["gradient_steps"] == 150 and summary["wall_seconds"] > walls[1]
     frames = [f for f, _ in read_scalar(run_dir, "eval/return")]
     assert frames == [1000, 2000, 3000]
     assert summary["resumes"] == [{"frames": 2000, "changes": {"collector.total_frames": [2000, 3000]}}]

@@ -67,6 +67,7 @@ __all__ = [
     "start_or_resume",
     "train_timing",
     "truncate_scalar_logs",
+    "wall_time",
     "write_atomic",
     "write_summary",
 ]
@@ -240,8 +241,12 @@ def new_run(*, env: str, algo: str, seed: int, teacher: str | None) -> dict:
     Counters (``frames``, ``gradient_steps``), the evaluations ``evals`` (``[frames, mean return]``
     pairs, see :func:`add_evaluation`) and ``passed_teacher_at``, the non-CSV loggers' states
     (``loggers``), the ``identity`` a resumed run must match, the resolved ``config`` it trains
-    with (set by :func:`start_or_resume`), and ``resumes``: the config changes each resume made
-    (``{"frames": ..., "changes": {key: [saved, new]}}``, see :func:`restore_run`).
+    with (set by :func:`start_or_resume`), ``resumes``: the config changes each resume made
+    (``{"frames": ..., "changes": {key: [saved, new]}}``, see :func:`restore_run`), and
+    ``wall_seconds``: the wall time of its training loop over all its starts, each up to its last
+    checkpoint (building and imports left out; ``None`` for a run continued from a checkpoint of
+    an earlier version, which did not keep it; the scripts update it with :func:`wall_time` at
+    each save).
 
     Examples:
         >>> new_run(env="Hopper-v4", algo="sail", seed=0, teacher=None)["identity"]
@@ -256,7 +261,19 @@ def new_run(*, env: str, algo: str, seed: int, teacher: str | None) -> dict:
         "identity": {"env": env, "algo": algo, "seed": seed, "teacher": teacher},
         "config": None,
         "resumes": [],
+        "wall_seconds": 0.0,
     }
+
+
+def wall_time(base: float | None, since: float, now: float) -> float | None:
+    """A run's wall time in all: ``base``, its ``wall_seconds`` when this start began (``None``:
+    unknown), plus this start's ``now - since``.
+
+    Examples:
+        >>> wall_time(100.0, since=5.0, now=35.0), wall_time(None, since=5.0, now=35.0)
+        (130.0, None)
+    """
+    return None if base is None else base + (now - since)
 
 
 def add_evaluation(run: dict, frames: int, value: float, teacher_return: float) -> None:
@@ -393,6 +410,7 @@ def restore_run(
     )
     checkpoint.load(path)
     run.setdefault("resumes", [])  # a checkpoint of an earlier version has none
+    run.setdefault("wall_seconds", None)  # nor its wall time: unknown
     if changes:
         print(f"resume at frame {run['frames']}: " + ", ".join(f"{k}={o!r} -> {n!r}" for k, (o, n) in changes.items()))
         run["resumes"].append({"frames": run["frames"], "changes": {k: [o, n] for k, (o, n) in changes.items()}})
