@@ -5,13 +5,13 @@ YAML file and every command-line override is merged into these dataclasses: a va
 wrong type (``optim.lr=abc``), a choice outside its set (``network.activation=gelu``) or an
 unknown key is rejected by Hydra with the full key named, before anything is built.
 
-The defaults here are SAIL's on MuJoCo, the SAIL authors' code (see README "Where we follow the
-paper ..."). The YAML files hold only what differs from them: ``conf/env/<env>.yaml`` per env,
-``conf/algo/<method>.yaml`` per method, ``conf/algo_env/<method>_<env>.yaml`` where a method's
-own code departs from the env file, and ``conf/config.yaml`` the defaults list and Hydra's
-settings. :func:`check_config` keeps what a type cannot say: ranges, rules across fields, and
-options that need a package or device this machine lacks. :data:`SCRIPTS` names the script
-that trains each ``algo.learner``.
+The defaults here are SAIL's on MuJoCo, the SAIL authors' code (``docs/paper_vs_code.md`` says
+where it departs from the paper and which reading is the default). The YAML files hold only
+what differs from them: ``conf/env/<env>.yaml`` per env, ``conf/algo/<method>.yaml`` per method,
+``conf/algo_env/<method>_<env>.yaml`` where a method's own code departs from the env file, and
+``conf/config.yaml`` the defaults list and Hydra's settings. :func:`check_config` keeps what a
+type cannot say: ranges, rules across fields, and options that need a package or device this
+machine lacks. :data:`SCRIPTS` names the script that trains each ``algo.learner``.
 """
 
 from __future__ import annotations
