@@ -7,6 +7,9 @@ Each layer adds one piece on top of the previous one and is timed over ``--frame
 (episodes reset as they end), median over ``--rounds``:
 
 - ``gymnasium``: ``gymnasium.make(env)`` stepped with NumPy actions: the simulator and its wrappers;
+- ``EnvBase floor``: the least a TorchRL env can add: an ``EnvBase`` whose ``_step`` only converts
+  gymnasium's arrays into a tensordict (no spec encoding, no info reader), so the difference to
+  ``gymnasium`` is ``EnvBase.step_and_maybe_reset`` itself, which any TorchRL env pays;
 - ``GymEnv``: TorchRL's ``GymEnv`` through ``step_and_maybe_reset`` (what the collector calls);
 - ``env stack``: the example's env (``make_sail_env``: the time feature, the delayed reward, ...);
 - ``+ policy``: the example's exploration policy (actor, tanh, Gaussian noise) before each step;
@@ -31,7 +34,9 @@ import gymnasium as gym
 import numpy as np
 import torch
 from hydra import compose, initialize_config_dir
-from torchrl.envs import Compose, ExplorationType, GymEnv, TransformedEnv, set_exploration_type
+from tensordict import TensorDict
+from torchrl.data import Bounded, Composite, Unbounded
+from torchrl.envs import Compose, EnvBase, ExplorationType, GymEnv, TransformedEnv, set_exploration_type
 
 from torchrl_sail.runs import cpu_flags, cpu_model
 
@@ -52,6 +57,7 @@ def parse_args(argv=None) -> argparse.Namespace:
     parser.add_argument("--per-transform", action="store_true", help="one layer per transform of the env stack")
     parser.add_argument("--label", default="current", help="names this measurement in --out")
     parser.add_argument("--out", type=Path, default=None, help="JSON file: one record per --label, replaced")
+    parser.add_argument("--other-load", default=None, help="what else ran on the machine, kept in the record")
     return parser.parse_args(argv)
 
 
@@ -71,6 +77,39 @@ def time_gymnasium(name: str, frames: int) -> float:
         if terminated or truncated:
             env.reset()
     return time.perf_counter() - start
+
+
+class FloorEnv(EnvBase):
+    """A gymnasium task behind the least TorchRL: arrays to tensors, nothing else (the ``EnvBase floor``)."""
+
+    def __init__(self, name: str):
+        super().__init__()
+        self.gym_env = gym.make(name)
+        space = self.gym_env.action_space
+        self.observation_spec = Composite(observation=Unbounded(self.gym_env.observation_space.shape))
+        self.action_spec = Bounded(torch.as_tensor(space.low), torch.as_tensor(space.high), space.shape)
+        self.reward_spec = Unbounded((1,))
+
+    def _output(self, observation, reward=None, terminated=False, truncated=False) -> TensorDict:
+        flags = {
+            "done": torch.tensor([terminated or truncated]),
+            "terminated": torch.tensor([terminated]),
+            "truncated": torch.tensor([truncated]),
+        }
+        out = {"observation": torch.from_numpy(observation.astype(np.float32)), **flags}
+        if reward is not None:
+            out["reward"] = torch.tensor([reward], dtype=torch.float32)
+        return TensorDict._new_unsafe(out, batch_size=())
+
+    def _reset(self, tensordict=None):
+        return self._output(self.gym_env.reset()[0])
+
+    def _step(self, tensordict):
+        observation, reward, terminated, truncated, _ = self.gym_env.step(tensordict["action"].numpy())
+        return self._output(observation, reward, terminated, truncated)
+
+    def _set_seed(self, seed):
+        self.gym_env.reset(seed=seed)
 
 
 def time_env(env, frames: int, policy=None) -> float:
@@ -120,11 +159,14 @@ def measure(args) -> dict[str, list[float]]:
     partial = partial_stacks(cfg, env) if args.per_transform else {}
     # the full stack is the "env stack" layer: named after its last transform with --per-transform
     stack = f"+ {type(env.transform[-1]).__name__} (env stack)" if args.per_transform else "env stack"
-    layers = ["gymnasium", "GymEnv", *partial, stack, "+ policy", "Collector"]
+    layers = ["gymnasium", "EnvBase floor", "GymEnv", *partial, stack, "+ policy", "Collector"]
     times = {layer: [] for layer in layers}
     with torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):
         for _ in range(args.rounds):
             times["gymnasium"].append(time_gymnasium(args.env, args.frames))
+            floor = FloorEnv(args.env)
+            floor.set_seed(0)
+            times["EnvBase floor"].append(time_env(floor, args.frames))
             times["GymEnv"].append(time_env(GymEnv(args.env), args.frames))
             for layer, partial_env in partial.items():
                 partial_env.set_seed(0)
@@ -157,6 +199,7 @@ def main(argv=None) -> None:
             "env": args.env,
             "frames": args.frames,
             "rounds": args.rounds,
+            "other_load": args.other_load,
         }
         records = json.loads(args.out.read_text()) if args.out.exists() else {}
         records[args.label] = {"setup": setup, "layers": rows}
