@@ -181,7 +181,7 @@ def main(cfg):  # noqa: F821
                     stored = nstep.inv(data.select(*TRANSITION_KEYS)).reshape(-1)
                 if absorbing is not None:
                     stored = absorbing.add_absorbing_transitions(stored)
-                if stored.numel():  # (the first batches of a run can all be waiting)
+                if stored.shape[0]:  # (the first batches of a run can all be waiting)
                     replay.extend(stored)
                     if recent is not replay:
                         recent.extend(stored)

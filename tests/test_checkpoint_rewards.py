@@ -1,0 +1,103 @@
+"""``benchmarks/checkpoint_rewards.py``: D's reward per row group at a run's checkpoint."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import torch
+from benchmark_scripts import load_benchmark
+from example_runner import run
+from tensordict import TensorDict
+from test_example import HOPPER, TINY
+
+from torchrl_sail import Discriminator, DiscriminatorReward
+
+checkpoint_rewards = load_benchmark("checkpoint_rewards")
+
+
+def constant_discriminator(logit: float) -> Discriminator:
+    """A D whose logit is ``logit`` for every row: last layer zero, its bias ``logit``."""
+    discriminator = Discriminator(3, 2, num_cells=(4,))
+    last = discriminator.module.mlp[-1]
+    with torch.no_grad():
+        last.weight.zero_()
+        last.bias.fill_(logit)
+    return discriminator
+
+
+def rows(n: int) -> TensorDict:
+    return TensorDict(
+        {"observation": torch.randn(n, 3), "action": torch.rand(n, 2), ("next", "reward"): torch.zeros(n, 1)}, [n]
+    )
+
+
+@pytest.mark.parametrize(
+    ("kind", "clip", "coef", "expected"),
+    [
+        ("gail", None, 1.0, math.log1p(math.exp(-1.5))),  # -log(1 - D) = softplus(logit)
+        ("airl", None, 1.0, -1.5),  # the logit itself
+        ("airl", (0.01, 0.99), 0.1, 0.1 * -1.5),  # inside the clip: unchanged, times coef
+        ("gail", (0.3, 0.99), 1.0, -math.log(0.7)),  # D = sigmoid(-1.5) = 0.18 clipped up to 0.3
+    ],
+)
+def test_summarize_against_hand_computed_values(kind, clip, coef, expected):
+    reward = DiscriminatorReward(constant_discriminator(-1.5), kind=kind, clip=clip, coef=coef, keep_logit=True)
+    stats = checkpoint_rewards.summarize(reward, rows(5))
+    assert stats["count"] == 5
+    assert stats["D"] == pytest.approx(1 / (1 + math.exp(1.5)))
+    assert stats["logit"] == pytest.approx(-1.5)
+    assert stats["reward"] == pytest.approx(expected, rel=1e-6)
+    assert stats["reward_std"] == pytest.approx(0.0, abs=1e-6)
+    assert checkpoint_rewards.summarize(reward, rows(0)) == {"count": 0}
+    line = checkpoint_rewards.table({"agent": stats, "none": {"count": 0}}).splitlines()
+    assert line[2] == f"| agent | 5 | 0.182 | -1.50 | {expected:.3f} | 0.000 |"
+    assert line[3] == "| none | 0 | - | - | - | - |"
+
+
+@pytest.mark.slow  # runs the example twice
+def test_groups_of_a_dac_published_checkpoint(tmp_path, teacher_dir, capsys):
+    run_dir = tmp_path / "dac_published"
+    run(
+        run_dir,
+        "algo=dac_published",
+        f"teacher.path={teacher_dir / HOPPER}",
+        "env=Hopper-v4",
+        "collector.total_frames=2000",
+        "logger.backends=[csv]",
+        "checkpoint.every_frames=1000",
+        "optim.actor_updates_after=60",
+        "optim.actor_lr_decay.every_frames=1000",
+        *TINY,
+    )
+    stats = checkpoint_rewards.main([str(run_dir), "--recent", "500"])
+    assert "checkpoint at 2000 frames; reward airl, clip None, coef 1.0" in capsys.readouterr().out
+    assert list(stats) == [
+        f"{group}, {part}"
+        for group in ("teacher buffer", "agent, all", "agent, latest 500")
+        for part in ("live", "absorbing")
+    ]
+    # every collected frame is one live agent row; each fall adds one absorbing row
+    assert stats["agent, all, live"]["count"] == 2000
+    assert stats["agent, all, absorbing"]["count"] >= 1
+    assert stats["agent, latest 500, live"]["count"] + stats["agent, latest 500, absorbing"]["count"] == 500
+    # the paper's Hopper teacher falls once (step 425): one demonstration, one absorbing row
+    assert stats["teacher buffer, live"]["count"] == 425 and stats["teacher buffer, absorbing"]["count"] == 1
+    for group in stats.values():  # dac_published's reward is the logit itself
+        assert group["reward"] == pytest.approx(group["logit"], abs=1e-5)
+        assert 0 < group["D"] < 1
+    # absorbing rows are one state with the zero action: one logit
+    assert stats["agent, all, absorbing"]["reward_std"] == pytest.approx(0.0, abs=1e-6)
+    other = tmp_path / "td3"
+    run(
+        other,
+        "algo=td3_delayed",
+        f"teacher.path={teacher_dir / HOPPER}",
+        "env=Hopper-v4",
+        "collector.total_frames=1000",
+        "logger.backends=[csv]",
+        "checkpoint.every_frames=1000",
+        *TINY,
+    )
+    with pytest.raises(ValueError, match="algo=td3_delayed learns from the env's reward"):
+        checkpoint_rewards.main([str(other)])
