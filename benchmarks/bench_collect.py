@@ -35,10 +35,10 @@ import numpy as np
 import torch
 from hydra import compose, initialize_config_dir
 from tensordict import TensorDict
-from torchrl.data import Bounded, Composite, Unbounded
+from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import Compose, EnvBase, ExplorationType, GymEnv, TransformedEnv, set_exploration_type
 
-from torchrl_sail.runs import cpu_flags, cpu_model
+from torchrl_sail.runs import cpu_flags, cpu_model, provenance
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "examples"))
@@ -89,6 +89,8 @@ class FloorEnv(EnvBase):
         self.observation_spec = Composite(observation=Unbounded(self.gym_env.observation_space.shape))
         self.action_spec = Bounded(torch.as_tensor(space.low), torch.as_tensor(space.high), space.shape)
         self.reward_spec = Unbounded((1,))
+        flag = Categorical(2, (1,), dtype=torch.bool)
+        self.done_spec = Composite(done=flag, terminated=flag.clone(), truncated=flag.clone())
 
     def _output(self, observation, reward=None, terminated=False, truncated=False) -> TensorDict:
         flags = {
@@ -167,7 +169,9 @@ def measure(args) -> dict[str, list[float]]:
             floor = FloorEnv(args.env)
             floor.set_seed(0)
             times["EnvBase floor"].append(time_env(floor, args.frames))
-            times["GymEnv"].append(time_env(GymEnv(args.env), args.frames))
+            gym_env = GymEnv(args.env)
+            gym_env.set_seed(0)
+            times["GymEnv"].append(time_env(gym_env, args.frames))
             for layer, partial_env in partial.items():
                 partial_env.set_seed(0)
                 times[layer].append(time_env(partial_env, args.frames))
@@ -180,6 +184,8 @@ def measure(args) -> dict[str, list[float]]:
 def main(argv=None) -> None:
     args = parse_args(argv)
     torch.set_num_threads(args.threads)
+    load_before = os.getloadavg()[0]  # the 1-minute load average: what else was running
+    code = provenance(REPO)
     ms = measure(args)
     rows, previous = [], 0.0
     width = max(map(len, ms))
@@ -200,6 +206,8 @@ def main(argv=None) -> None:
             "frames": args.frames,
             "rounds": args.rounds,
             "other_load": args.other_load,
+            "load_average_before": load_before,
+            **{key: code[key] for key in ("commit", "dirty")},
         }
         records = json.loads(args.out.read_text()) if args.out.exists() else {}
         records[args.label] = {"setup": setup, "layers": rows}

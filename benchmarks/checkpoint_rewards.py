@@ -2,15 +2,20 @@
 
     python benchmarks/checkpoint_rewards.py RUN_DIR [--recent 20000]
 
-Rebuilds the run's discriminator, replay buffer and teacher buffer from its ``config.yaml`` (over
-the schema's defaults, as ``examples/evaluate.py`` does) and its last checkpoint, evaluates D on
-each stored row and prints one Markdown row per group: the teacher buffer's rows (the
-demonstrations and any promoted trajectories), all the
-agent's rows and its ``--recent`` latest ones, each split into live rows and DAC's absorbing-state
-rows (runs with ``algo.absorbing_state``). The columns are D's mean probability, its mean logit and
-the reward the critic's batches get from it (the run's ``algo.reward``: kind, clip and coef), with
-its spread. What the logged diagnostics cannot say, this can: e.g. whether falling (the absorbing
-state) costs the agent more per step than staying up.
+For the off-policy methods with a discriminator reward (``examples/sail_td3.py``: sail, dac,
+dac_published, ...). Rebuilds the run's discriminator, replay buffer and teacher buffer from its
+``config.yaml`` (over the schema's defaults, as ``examples/evaluate.py`` does) and its last
+checkpoint, on the CPU whatever device it trained on, evaluates D on each stored row and prints
+one Markdown row per group: the teacher buffer's rows (the demonstrations and any promoted
+trajectories: the header gives the counts), all the agent's rows and its ``--recent`` latest ones,
+each split into live rows and DAC's absorbing-state rows (runs with ``algo.absorbing_state``).
+The columns are D's mean probability, its mean logit, and the D reward ``coef * r(D)`` of the
+run's ``algo.reward`` (kind, clip, coef) with its spread: the critic's reward for
+``reward.source=discriminator``, to which ``source=shaped`` adds the env's delayed reward and
+SAIL-RND its bonus (neither is included). It is computed in float32, also for
+``optim.precision=bf16`` runs. What the logged diagnostics cannot say, this can: e.g. whether
+falling (the absorbing state) costs the agent more per step than staying up. The run's teacher
+file must still be where its config says.
 """
 
 from __future__ import annotations
@@ -31,19 +36,27 @@ from utils import FilledRows, make_absorbing, make_discriminator, make_env, make
 
 from torchrl_sail.runs import checkpoint_dir  # noqa: E402
 
-HEADER = "| rows | count | D | logit | critic reward | reward std |\n|---|---|---|---|---|---|"
+HEADER = "| rows | count | D | logit | D reward | D reward std |\n|---|---|---|---|---|---|"
 
 
 def parse_args(argv=None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("run_dir", type=Path)
     parser.add_argument("--recent", type=int, default=20_000, help="the agent's latest rows, as their own group")
-    return parser.parse_args(argv)
+    args = parser.parse_args(argv)
+    if args.recent < 1:
+        parser.error(f"--recent must be >= 1, got {args.recent}")
+    return args
 
 
 def load(run_dir: Path):
     """The run's config, frames, D, reward transform and the stored rows (teacher, agent in write order)."""
     cfg, run = load_run(run_dir)
+    if cfg.algo.learner not in ("td3", "sac"):
+        raise ValueError(
+            f"{run_dir}: algo={cfg.algo.name} is on-policy (algo.learner={cfg.algo.learner}): it keeps no replay "
+            f"buffer to evaluate D on"
+        )
     if cfg.algo.reward.source == "env":
         raise ValueError(
             f"{run_dir}: algo={cfg.algo.name} learns from the env's reward; it has no discriminator reward"
@@ -54,13 +67,13 @@ def load(run_dir: Path):
     replay = make_replay(cfg.env.replay_size, "cpu")
     discriminator = make_discriminator(cfg, env)
     Checkpoint(discriminator=discriminator, replay=FilledRows(replay), teacher=teacher).load(
-        checkpoint_dir(run_dir), components=["discriminator", "replay", "teacher"]
+        checkpoint_dir(run_dir), components=["discriminator", "replay", "teacher"], map_location="cpu"
     )
     reward = make_reward(cfg, discriminator.eval(), keep_logit=True)
     agent = replay.storage.get(torch.arange(len(replay)))
     if len(replay) == replay.storage.max_size:  # wrapped: the oldest row is at the writer's cursor
         agent = agent.roll(-int(replay.writer._cursor), 0)
-    return cfg, run, reward, teacher.storage.get(teacher.writer.stored_rows()), agent
+    return cfg, run, reward, teacher, agent
 
 
 def groups(cfg, teacher: TensorDictBase, agent: TensorDictBase, recent: int) -> dict[str, TensorDictBase]:
@@ -83,7 +96,9 @@ def groups(cfg, teacher: TensorDictBase, agent: TensorDictBase, recent: int) -> 
 def summarize(reward, rows: TensorDictBase) -> dict[str, float]:
     if not rows.shape[0]:  # (a TensorDict's numel() is at least 1)
         return {"count": 0}
-    out = reward(rows.select("observation", "action", ("next", "reward"), strict=False).clone())
+    rows = rows.select("observation", "action").clone()
+    rows["next", "reward"] = torch.zeros(rows.shape[0], 1)  # D's part alone (source=shaped adds it to this)
+    out = reward(rows)
     logit, value = out[reward.discriminator.out_keys[0]].squeeze(-1), out["next", "reward"].squeeze(-1)
     return {
         "count": rows.shape[0],
@@ -110,9 +125,14 @@ def main(argv=None) -> dict[str, dict[str, float]]:
     args = parse_args(argv)
     torch.set_num_threads(1)
     cfg, run, reward, teacher, agent = load(args.run_dir)
-    stats = {name: summarize(reward, rows) for name, rows in groups(cfg, teacher, agent, args.recent).items()}
-    r = cfg.algo.reward
-    print(f"{args.run_dir}: checkpoint at {run['frames']} frames; reward {r.kind}, clip {r.clip}, coef {r.coef}\n")
+    teacher_rows = teacher.storage.get(teacher.writer.stored_rows())
+    stats = {name: summarize(reward, rows) for name, rows in groups(cfg, teacher_rows, agent, args.recent).items()}
+    r, w = cfg.algo.reward, teacher.writer
+    print(
+        f"{args.run_dir}: checkpoint at {run['frames']} frames; D reward: source {r.source}, kind {r.kind}, "
+        f"clip {r.clip}, coef {r.coef}; teacher buffer: {w.num_trajectories} trajectories held, of "
+        f"{w.num_demonstrations} demonstrations and {w.num_promoted} promoted\n"
+    )
     print(table(stats))
     return stats
 

@@ -48,7 +48,8 @@ def test_per_transform_layers_and_record(tmp_path, capsys):
         assert abs(row["added"] - (row["ms_per_frame"] - previous)) < 1e-9  # the difference to the layer above
         previous = row["ms_per_frame"]
     assert record["setup"]["frames"] == 20 and record["setup"]["env"] == "Hopper-v4"
-    assert record["setup"]["other_load"] == "tests"
+    assert record["setup"]["other_load"] == "tests" and record["setup"]["load_average_before"] >= 0
+    assert len(record["setup"]["commit"]) == 40
     assert "+ DelayedRewardTransform (env stack)" in capsys.readouterr().out
     # a second label is added beside the first, not over it
     bench_collect.main(["--frames", "20", "--rounds", "1", "--label", "plain", "--out", str(out)])
@@ -67,6 +68,7 @@ def test_per_transform_layers_and_record(tmp_path, capsys):
 def test_floor_env_steps_like_gym_env():
     """The floor does GymEnv's work (same observations, rewards and flags), only with less TorchRL around it."""
     floor, reference = bench_collect.FloorEnv("Hopper-v4"), GymEnv("Hopper-v4")
+    assert floor.done_keys == reference.done_keys  # the same flags for EnvBase to complete and reset on
     floor.set_seed(3)
     reference.set_seed(3)
     actions = torch.ones(150, 3)  # full torque: the hopper falls, so a reset is compared too
