@@ -178,7 +178,8 @@ def main(cfg):  # noqa: F821
                 if nstep is None:
                     stored = flat.select(*TRANSITION_KEYS)
                 else:  # per env stream (time last), across batches: a step waits for the n steps after it
-                    stored = nstep.inv(data.select(*TRANSITION_KEYS)).reshape(-1)
+                    # (flatten, not reshape(-1): TensorDict sizes an empty batch as 1 row)
+                    stored = nstep.inv(data.select(*TRANSITION_KEYS)).flatten(0, -1)
                 if absorbing is not None:
                     stored = absorbing.add_absorbing_transitions(stored)
                 if stored.shape[0]:  # (the first batches of a run can all be waiting)

@@ -256,6 +256,27 @@ def test_pofd_is_ppo_on_the_shaped_delayed_reward(tmp_path, teacher_dir):
     assert saved(run_dir, "observation_norm")
 
 
+def test_ddpgfd_with_collector_batches_shorter_than_n(tmp_path, teacher_dir):
+    """A batch of 5 frames with n = 10: the first one's transitions all wait for their n-step view."""
+    run_dir = tmp_path / "short_batches"
+    run(
+        run_dir,
+        "algo=ddpgfd",
+        f"teacher.path={teacher_dir / HOPPER}",
+        *COMMON,
+        "collector.total_frames=300",
+        "collector.init_random_frames=100",
+        "collector.frames_per_batch=5",
+        "optim.train_every_frames=100",
+        "eval.every_frames=300",
+        "checkpoint.every_frames=0",
+    )
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert summary["frames"] == 300 and summary["gradient_steps"] == 150  # at 100, 200 and 300 frames
+    # every collected transition reached the replay once its n steps were in (or its episode ended)
+    assert saved(run_dir, "replay")["replay"]["size"] >= 300 - 10
+
+
 def test_resume_auto_continues_skips_and_restarts(tmp_path, teacher_dir):
     run_dir = tmp_path / "run"
     args = ["algo=ddpgfd", f"teacher.path={teacher_dir / HOPPER}", *COMMON, "resume=auto"]
