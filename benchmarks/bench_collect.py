@@ -7,9 +7,9 @@ Each layer adds one piece on top of the previous one and is timed over ``--frame
 (episodes reset as they end), median over ``--rounds``:
 
 - ``gymnasium``: ``gymnasium.make(env)`` stepped with NumPy actions: the simulator and its wrappers;
-- ``EnvBase floor``: the least a TorchRL env can add: an ``EnvBase`` whose ``_step`` only converts
-  gymnasium's arrays into a tensordict (no spec encoding, no info reader), so the difference to
-  ``gymnasium`` is ``EnvBase.step_and_maybe_reset`` itself, which any TorchRL env pays;
+- ``EnvBase floor``: an ``EnvBase`` whose ``_step`` only converts gymnasium's arrays into a
+  tensordict (no spec encoding, no info reader), stepped one frame at a time: its difference to
+  ``gymnasium`` is that conversion plus ``EnvBase.step_and_maybe_reset``'s own per-step work;
 - ``GymEnv``: TorchRL's ``GymEnv`` through ``step_and_maybe_reset`` (what the collector calls);
 - ``env stack``: the example's env (``make_sail_env``: the time feature, the delayed reward, ...);
 - ``+ policy``: the example's exploration policy (actor, tanh, Gaussian noise) before each step;
