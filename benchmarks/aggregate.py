@@ -104,7 +104,7 @@ CI_RESAMPLES = 10_000
 CI_SEED = 0
 NA = "n/a"
 # Config keys that legitimately differ between the seeds of one group.
-PER_RUN_KEYS = ("seed", "resume", "teacher.path", "device", "threads", "logger.")
+PER_RUN_KEYS = ("seed", "resume", "teacher.path", "device", "threads", "flush_denormal", "logger.")
 # Settings a resume may change that leave what a run learns and how it is evaluated alone: a
 # run's summary records every resume's changes (`resumes`), and the notes name the others.
 # Each covers the keys below it (`logger` covers `logger.backends`).
@@ -114,6 +114,7 @@ OPERATIONAL_RESUME_KEYS = (
     "collector.backend",
     "collector.backend_options",
     "threads",
+    "flush_denormal",
     "device",
     "optim.implementation",
     "optim.cudagraphs",

@@ -324,6 +324,9 @@ class SAILConfig:
     seed: int = 0
     device: str = "cpu"
     threads: int = 1  # torch intra-op threads; 1 is fastest on 2 shared cores (measured), 0 keeps torch's default
+    # flush denormal floats to zero (torch.set_flush_denormal): Adam's moments of units whose
+    # gradient is 0 decay through the denormal range, which x86 CPUs compute many times slower
+    flush_denormal: bool = True
     # true: continue the run in hydra.run.dir from its last checkpoint | false: start one (refused
     # if the folder holds a checkpoint) | auto: continue if there is a checkpoint, skip a finished
     # run, else start (for matrices that must survive interruption). A union a schema cannot type:
@@ -367,6 +370,7 @@ class MakeTeacherConfig:
     seed: int = 0
     device: str = "cpu"
     threads: int = 1
+    flush_denormal: bool = True  # as in the training scripts' config
     frames: int = 100_000  # TD3 budget (dense reward)
     init_random_frames: int = 5000
     frames_per_batch: int = 1000

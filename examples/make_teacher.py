@@ -16,7 +16,7 @@ import hydra
 import torch
 import tqdm
 from config_schema import register_config_schema
-from run_utils import seed_everything
+from run_utils import seed_everything, set_cpu_math
 from torchrl.collectors import Collector
 from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.objectives import SoftUpdate, TD3Loss
@@ -48,8 +48,7 @@ def record(env, actor, max_steps):
 
 @hydra.main(version_base="1.3", config_path="../conf", config_name="make_teacher")
 def main(cfg):  # noqa: F821
-    if cfg.threads:
-        torch.set_num_threads(cfg.threads)
+    set_cpu_math(cfg.threads, cfg.flush_denormal)
     seed_everything(cfg.seed)
     env, eval_env = make_env(cfg, cfg.seed), make_env(cfg, cfg.seed + 10_000)
     actor, critic, exploration_policy = make_agent(cfg, env)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import random
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -33,16 +34,26 @@ def seed_everything(seed: int) -> None:
     torch.manual_seed(seed)
 
 
+def set_cpu_math(threads: int, flush_denormal: bool) -> None:
+    """Torch's intra-op threads (0 keeps torch's default) and whether denormal floats are flushed to zero."""
+    if threads:
+        torch.set_num_threads(threads)
+    if not torch.set_flush_denormal(flush_denormal) and flush_denormal:
+        warnings.warn(
+            "flush_denormal=true: this CPU has no flush-to-zero mode (torch.set_flush_denormal returned False)",
+            stacklevel=2,
+        )
+
+
 def start_run(cfg: DictConfig, script: str) -> tuple[Path, bool | None]:
-    """Check the config for ``script``, set threads and seeds, and say how the run folder starts.
+    """Check the config for ``script``, set threads, denormals and seeds, and say how the run folder starts.
 
     Returns the run folder (Hydra's output directory) and :func:`~torchrl_sail.runs.resume_mode`'s
     answer; ``None`` means a finished run under ``resume=auto``, which the caller skips.
     """
     check_script(cfg, script)
     check_config(cfg)
-    if cfg.threads:
-        torch.set_num_threads(cfg.threads)
+    set_cpu_math(cfg.threads, cfg.flush_denormal)
     run_dir = Path(HydraConfig.get().runtime.output_dir)
     resuming = resume_mode(run_dir, cfg.resume, cfg.collector.total_frames, config=cfg)
     if resuming is None:  # resume=auto on a finished run (e.g. a rerun matrix)

@@ -297,3 +297,22 @@ def test_reward_rounding_reaches_the_env_and_the_demonstrations(rounding):
     assert reward[:-1].abs().sum() == 0  # delayed: nothing before the episode's end
     expected = math.floor(0.1 * dense_return) if rounding == "floor" else 0.1 * dense_return
     assert float(reward[-1]) == pytest.approx(expected, rel=1e-5, abs=1e-6)
+
+
+def test_flush_denormal_reaches_torch():
+    import torch
+    from run_utils import set_cpu_math
+
+    assert make().flush_denormal is True and make("flush_denormal=false").flush_denormal is False
+    denormal = torch.tensor([1e-39])  # below float32's smallest normal, 1.18e-38
+    threads = torch.get_num_threads()
+    if not torch.set_flush_denormal(False):
+        pytest.skip("this CPU has no flush-to-zero mode")
+    try:
+        assert (denormal * 1.0).item() != 0.0
+        set_cpu_math(0, flush_denormal=True)  # 0 threads: torch's setting stays
+        assert (denormal * 1.0).item() == 0.0 and torch.get_num_threads() == threads
+        set_cpu_math(0, flush_denormal=False)
+        assert (denormal * 1.0).item() != 0.0
+    finally:
+        torch.set_flush_denormal(False)  # torch's default, for the tests after this one

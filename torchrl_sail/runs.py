@@ -96,6 +96,7 @@ RESUME_MAY_CHANGE = (
     "eval",
     "checkpoint",
     "threads",
+    "flush_denormal",
     "device",
     "optim.implementation",
     "optim.cudagraphs",
