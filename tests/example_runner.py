@@ -16,6 +16,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+import torch
 from fork_server import STARTUP_VARIABLES, ForkServer, ServerGone
 
 from torchrl_sail.runs import read_scalar  # noqa: F401  (the tests read logged scalars with it)
@@ -147,6 +148,8 @@ def fail_in_process(run_dir: Path, *overrides: str, script: str = "sail_td3.py")
     if str(EXAMPLES) not in sys.path:
         sys.path.insert(0, str(EXAMPLES))
     module = importlib.import_module(Path(script).stem)
+    # the script sets process-wide math state (threads, flush_denormal): put this process's back
+    threads, flushing = torch.get_num_threads(), not 5e-324 > 0  # the smallest subnormal reads as 0 when flushed
 
     try:
         with initialize_config_dir(config_dir=str(REPO / "conf"), version_base="1.3"):
@@ -158,4 +161,7 @@ def fail_in_process(run_dir: Path, *overrides: str, script: str = "sail_td3.py")
         module.main.__wrapped__(cfg)
     except Exception as err:  # noqa: BLE001 (the message is what the tests check)
         return f"{type(err).__name__}: {err}" + (f"\n{err.__cause__}" if err.__cause__ else "")
+    finally:
+        torch.set_num_threads(threads)
+        torch.set_flush_denormal(flushing)
     raise AssertionError(f"{script} {' '.join(overrides)} did not fail")
