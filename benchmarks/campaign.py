@@ -12,7 +12,9 @@ and deterministic evaluations of 10 episodes every 10k frames, in
 cell: seed 0 of every cell first, then the other seeds, then the 1M-frame runs, then the
 teacher-quality and teacher-rule sweeps. ``--stages precision`` (never a default) pairs
 ``optim.precision=fp32`` and ``bf16`` on Hopper-v4, 100k frames, seeds 0-2; it needs bf16
-hardware (AVX-512 or AMX, or a GPU with ``--overrides device=cuda``). ``--jobs`` runs go at
+hardware (AVX-512 or AMX, or a GPU with ``--overrides device=cuda``). ``--stages weak`` runs the
+defaults with the weak teachers, and ``--stages logit`` SAIL with D's logit as the critic's reward
+(``algo.reward.kind=airl``; teacher labels ``<teacher>-logit``), neither a default. ``--jobs`` runs go at
 once; rerunning the same command after an interruption continues where it stopped.
 ``--teachers-dir`` holds the SAIL authors' teacher files
 (``expert_data_no_img_<Env>_scores_<score>_episodes_1.npz``).
@@ -158,6 +160,17 @@ def plan() -> list[Cell]:
         for seed in (0, 1, 2)
         for precision in ("fp32", "bf16")
     ]
+    # The critic rewarded with D's logit (the weak-teacher study's candidate remedy), its own rows
+    # ("<teacher>-logit") beside the defaults': the weak teachers and the paper's on the envs
+    # without early termination, 3 seeds; Hopper and Walker2d, where the logit's negative reward
+    # may pay a fall, seed 0. Not in the default stages, as it comes after the main table.
+    logit = ("algo.reward.kind=airl",)
+    for seed in (0, 1, 2):
+        cells += [
+            Cell("logit", env, "sail", seed, 300_000, f"{label}-logit", logit) for env, label in WEAK_TEACHERS.items()
+        ]
+        cells += [Cell("logit", env, "sail", seed, 300_000, "paper-logit", logit) for env in WEAK_TEACHERS]
+    cells += [Cell("logit", env, "sail", 0, 300_000, "paper-logit", logit) for env in ("Hopper-v4", "Walker2d-v4")]
     return cells
 
 
@@ -170,8 +183,8 @@ def device_of(overrides: list[str]) -> str:
 def teacher_path(
     cell: Cell, teachers_dir: Path | None, random_teacher: Path | None, weak_dir: Path = WEAK_TEACHERS_DIR
 ) -> Path | None:
-    if cell.stage == "weak":
-        return weak_dir / cell.teacher
+    if cell.stage in ("weak", "logit") and not cell.teacher.startswith("paper"):
+        return weak_dir / cell.teacher.removesuffix("-logit")
     if cell.teacher.startswith("paper"):
         return teachers_dir / PAPER_TEACHERS[cell.env]
     if cell.teacher == "random":
@@ -252,10 +265,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--stages",
         nargs="+",
-        choices=["main", "scale", "teachers", "buffer", "weak", "precision"],
+        choices=["main", "scale", "teachers", "buffer", "weak", "precision", "logit"],
         default=["main", "scale", "teachers", "buffer"],
-        help="weak (SAIL with weak teachers) and precision (fp32 against bf16: it needs bf16 hardware) "
-        "are never defaults",
+        help="weak (SAIL with weak teachers), precision (fp32 against bf16: it needs bf16 hardware) and "
+        "logit (SAIL with D's logit as the critic's reward) are never defaults",
     )
     parser.add_argument(
         "--overrides",
@@ -282,7 +295,8 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"--teachers-dir {args.teachers_dir} lacks {', '.join(missing)}")
     teachers_dir = None if args.teachers_dir is None else args.teachers_dir.resolve()
     weak_dir = args.weak_teachers_dir.resolve()
-    missing = sorted({c.teacher for c in cells if c.stage == "weak" and not (weak_dir / c.teacher).is_dir()})
+    weak = {c.teacher.removesuffix("-logit") for c in cells if c.stage in ("weak", "logit")} - {"paper"}
+    missing = sorted(label for label in weak if not (weak_dir / label).is_dir())
     if missing:
         parser.error(f"--weak-teachers-dir {weak_dir} lacks {', '.join(missing)} (see benchmarks/README.md)")
     device = device_of(args.overrides)
