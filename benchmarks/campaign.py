@@ -60,6 +60,8 @@ WEAK_TEACHERS = {
     "Swimmer-v4": "weak_swimmer",
     "HalfCheetah-v4": "early_halfcheetah",
 }
+# The envs whose episodes end only at the time limit (no fall ends them)
+NO_EARLY_TERMINATION = ("Swimmer-v4", "HalfCheetah-v4")
 WEAK_TEACHERS_DIR = REPO / "benchmarks" / "results" / "campaign" / "teachers"
 # What a run's report needs from its logs: the evaluation curve, then the diagnostics that explain
 # it (D's accuracy and rewards on both sides, Q, the threshold C and promotions, alpha, speed).
@@ -169,8 +171,10 @@ def plan() -> list[Cell]:
         cells += [
             Cell("logit", env, "sail", seed, 300_000, f"{label}-logit", logit) for env, label in WEAK_TEACHERS.items()
         ]
-        cells += [Cell("logit", env, "sail", seed, 300_000, "paper-logit", logit) for env in WEAK_TEACHERS]
-    cells += [Cell("logit", env, "sail", 0, 300_000, "paper-logit", logit) for env in ("Hopper-v4", "Walker2d-v4")]
+        cells += [Cell("logit", env, "sail", seed, 300_000, "paper-logit", logit) for env in NO_EARLY_TERMINATION]
+    cells += [
+        Cell("logit", env, "sail", 0, 300_000, "paper-logit", logit) for env in ENVS if env not in NO_EARLY_TERMINATION
+    ]
     return cells
 
 

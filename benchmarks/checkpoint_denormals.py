@@ -34,8 +34,10 @@ GROUPS = ("loss", "optim_actor", "optim_critic")
 
 
 def denormal_count(tensor: torch.Tensor) -> int:
-    """Nonzero float32 values below the smallest normal."""
-    return int(((tensor != 0) & (tensor.abs() < torch.finfo(torch.float32).tiny)).sum())
+    """Nonzero float32 values below the smallest normal, read from their bits: with denormals
+    flushed in this process the CPU would read them as 0."""
+    bits = tensor.contiguous().view(torch.int32)
+    return int((((bits & 0x7F800000) == 0) & ((bits & 0x007FFFFF) != 0)).sum())
 
 
 def load(run_dir: Path) -> dict[str, dict[str, torch.Tensor]]:

@@ -35,14 +35,18 @@ def seed_everything(seed: int) -> None:
 
 
 def set_cpu_math(threads: int, flush_denormal: bool) -> None:
-    """Torch's intra-op threads (0 keeps torch's default) and whether denormal floats are flushed to zero."""
-    if threads:
-        torch.set_num_threads(threads)
+    """Whether denormal floats are flushed to zero, and torch's intra-op threads (0 keeps torch's default).
+
+    Call it before any torch work: the flag is per thread, and torch's worker threads take it
+    from the thread that creates them.
+    """
     if not torch.set_flush_denormal(flush_denormal) and flush_denormal:
         warnings.warn(
             "flush_denormal=true: this CPU has no flush-to-zero mode (torch.set_flush_denormal returned False)",
             stacklevel=2,
         )
+    if threads:
+        torch.set_num_threads(threads)
 
 
 def start_run(cfg: DictConfig, script: str) -> tuple[Path, bool | None]:
