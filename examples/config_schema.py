@@ -91,6 +91,9 @@ class RewardConfig:
     source: RewardSource = RewardSource.discriminator
     kind: RewardKind = RewardKind.gail  # gail: -log(1 - D) (SAIL, GAIL) | airl: log D - log(1 - D) (DAC, AIRL)
     clip: Optional[List[float]] = None  # [low, high]: D clipped before the reward (the SAIL authors' DAC)
+    # added before coef: r = coef * (f(D) + shift); airl with clip [0.01, 0.99] and shift log(99) = 4.595
+    # is the logit floored at 0 (never pays an early end); ours, not in the authors' code
+    shift: float = 0.0
     coef: float = 1.0  # weight of D's reward
     # learner=ppo: coef *= coef_decay after every on-policy batch (POfD's lambda_1 schedule)
     coef_decay: float = 1.0
@@ -562,6 +565,12 @@ def check_config(cfg: DictConfig) -> None:
             cfg.algo.reward.clip is None
             or (len(cfg.algo.reward.clip) == 2 and 0 < cfg.algo.reward.clip[0] < cfg.algo.reward.clip[1] < 1),
             "must be [low, high] with 0 < low < high < 1, or null",
+        ),
+        (
+            "algo.reward.shift",
+            cfg.algo.reward.shift,
+            math.isfinite(cfg.algo.reward.shift),
+            "must be a finite number",
         ),
         (
             "collector.backend",

@@ -353,6 +353,7 @@ def make_reward(cfg: DictConfig, discriminator: Discriminator, rnd: RNDReward | 
             kind=r.kind,
             coef=r.coef,
             clip=None if r.clip is None else tuple(r.clip),
+            shift=r.shift,
             mode="add" if r.source == "shaped" else "replace",
             **kwargs,
         )

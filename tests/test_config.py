@@ -155,6 +155,7 @@ def test_optional_blocks_are_typed_when_set():
         (["algo=gail", "algo.reward.source=env"], "the PPO generator (gail, pofd) learns from D's reward"),
         (["algo=pofd_td3", "algo.reward.coef_decay=0.5"], "and 1 unless algo.learner=ppo"),
         (["algo=pofd", "algo.reward.coef_decay=0"], "algo.reward.coef_decay=0.0: must be in (0, 1]"),
+        (["algo.reward.shift=inf"], "algo.reward.shift=inf: must be a finite number"),
         (["algo=ddpgfd", "algo.nstep.n=1"], "algo.nstep.n=1: must be >= 2 (algo.nstep=null for the 1-step"),
         (["algo=ddpgfd", "algo.nstep.lambda1=0"], "algo.nstep.lambda1=0.0: must be a finite number > 0"),
         (

@@ -194,6 +194,24 @@ class TestDiscriminatorReward:
         airl = DiscriminatorReward(disc, kind="airl", clip=(0.01, 0.99))(td.clone())["next", "reward"]
         torch.testing.assert_close(airl, torch.tensor([[math.log(99.0)], [-math.log(99.0)], [0.0]]))
 
+    def test_shift_against_hand_values(self):
+        # logit = obs: 6 -> clamped to log 99, -6 -> -log 99, 0 kept; shift log 99 floors the logit at 0
+        disc = _linear_disc([1.0, 0.0])
+        td = TensorDict(
+            observation=torch.tensor([[6.0], [-6.0], [0.0], [-1.0]]),
+            action=torch.zeros(4, 1),
+            next=TensorDict(reward=torch.full((4, 1), 3.0), batch_size=[4]),
+            batch_size=[4],
+        )
+        floored = DiscriminatorReward(disc, kind="airl", clip=(0.01, 0.99), shift=math.log(99.0))
+        expected = torch.tensor([[2 * math.log(99.0)], [0.0], [math.log(99.0)], [math.log(99.0) - 1.0]])
+        torch.testing.assert_close(floored(td.clone())["next", "reward"], expected)
+        # the shift comes before coef, and mode="add" adds the whole to the reward already there
+        scaled = DiscriminatorReward(disc, kind="airl", shift=2.0, coef=0.5, mode="add")(td.clone())
+        torch.testing.assert_close(scaled["next", "reward"], 3.0 + 0.5 * (torch.tensor([[6.0], [-6.0], [0.0], [-1.0]]) + 2.0))
+        gail = DiscriminatorReward(disc, shift=-1.0)(td.clone())["next", "reward"]
+        torch.testing.assert_close(gail, F.softplus(td["observation"]) - 1.0)
+
     def test_add_mode_in_an_env_adds_to_the_env_reward(self):
         disc = Discriminator(OBS_DIM, ACT_DIM, num_cells=(8,))
         plain = ContinuousActionVecMockEnv()
@@ -212,6 +230,7 @@ class TestDiscriminatorReward:
             ({"mode": "mix"}, "mode must be"),
             ({"clip": (0.0, 0.99)}, "clip must be"),
             ({"clip": (0.9, 0.1)}, "clip must be"),
+            ({"shift": math.inf}, "shift must be finite"),
         ],
     )
     def test_bad_kind_or_mode(self, kwargs, message):

@@ -105,6 +105,10 @@ class DiscriminatorReward(Transform):
             before the reward is taken, e.g. ``(0.01, 0.99)`` for the SAIL authors' DAC
             reward ``-log(1 - clip(D, 0.01, 0.99))``. Computed exactly as a clamp of the logit
             to ``[logit(low), logit(high)]``. Defaults to ``None`` (no clipping).
+        shift (float, optional): added to the reward before ``coef``: ``r = coef * (f(ℓ) + shift)``.
+            With ``kind="airl"`` and ``clip=(0.01, 0.99)``, ``shift=log(99) ≈ 4.595`` makes the
+            logit reward ``>= 0`` (in ``[0, 2 log 99]``) while keeping its slope 1 inside the clip,
+            so an episode that ends early (a fall) is never paid for ending. Defaults to ``0.0``.
         coef (float, optional): the reward is multiplied by this. Defaults to ``1.0``.
         mode (str, optional): ``"replace"`` writes ``coef * r`` to ``out_key``; ``"add"``
             adds it to the value already there (e.g. ``r_env + coef * r_D`` as POfD
@@ -118,6 +122,7 @@ class DiscriminatorReward(Transform):
             ``None`` (every row evaluated).
 
     Examples:
+        >>> import math
         >>> import torch
         >>> from tensordict import TensorDict
         >>> from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
@@ -151,6 +156,9 @@ class DiscriminatorReward(Transform):
         >>> d = torch.sigmoid(logit).clamp(0.01, 0.99)
         >>> torch.allclose(clipped(data.clone())["next", "reward"], -torch.log(1 - d))
         True
+        >>> floored = DiscriminatorReward(disc, kind="airl", clip=(0.01, 0.99), shift=math.log(99))
+        >>> bool((floored(data.clone())["next", "reward"] >= 0).all())  # the logit, floored at 0
+        True
     """
 
     def __init__(
@@ -162,6 +170,7 @@ class DiscriminatorReward(Transform):
         chunk_size: int = 1024,
         kind: str = "gail",
         clip: tuple[float, float] | None = None,
+        shift: float = 0.0,
         coef: float = 1.0,
         mode: str = "replace",
         row_id_key: NestedKey | None = None,
@@ -174,6 +183,8 @@ class DiscriminatorReward(Transform):
             raise ValueError(f"mode must be 'replace' or 'add', got {mode!r}.")
         if clip is not None and not (len(clip) == 2 and 0 < clip[0] < clip[1] < 1):
             raise ValueError(f"clip must be (low, high) with 0 < low < high < 1, got {clip!r}.")
+        if not math.isfinite(shift):
+            raise ValueError(f"shift must be finite, got {shift!r}.")
         super().__init__(in_keys=list(discriminator.in_keys), out_keys=[out_key])
         self.discriminator = discriminator
         self.keep_logit = keep_logit
@@ -182,6 +193,7 @@ class DiscriminatorReward(Transform):
         self.clip = None if clip is None else (float(clip[0]), float(clip[1]))
         # clip(sigmoid(l), low, high) == sigmoid(clamp(l, logit(low), logit(high))): sigmoid is monotone
         self._logit_bounds = None if clip is None else tuple(math.log(p / (1 - p)) for p in self.clip)
+        self.shift = float(shift)
         self.coef = coef
         self.mode = mode
         self.row_id_key = row_id_key
@@ -220,6 +232,8 @@ class DiscriminatorReward(Transform):
         if self._logit_bounds is not None:
             logit = logit.clamp(*self._logit_bounds)
         reward = F.softplus(logit) if self.kind == "gail" else logit
+        if self.shift != 0.0:
+            reward = reward + self.shift
         if self.coef != 1.0:
             reward = self.coef * reward
         if self.mode == "add":
