@@ -13,8 +13,8 @@ cell: seed 0 of every cell first, then the other seeds, then the 1M-frame runs, 
 teacher-quality and teacher-rule sweeps. ``--stages precision`` (never a default) pairs
 ``optim.precision=fp32`` and ``bf16`` on Hopper-v4, 100k frames, seeds 0-2; it needs bf16
 hardware (AVX-512 or AMX, or a GPU with ``--overrides device=cuda``). ``--stages weak`` runs the
-defaults with the weak teachers, and ``--stages logit`` SAIL with D's logit as the critic's reward
-(``algo.reward.kind=airl``; teacher labels ``<teacher>-logit``), neither a default. ``--jobs`` runs go at
+defaults with the weak teachers, and ``--stages centred`` SAIL with its reward centred at D = 1/2
+(``algo.reward.shift=-log 2``; teacher labels ``<teacher>-centred``), neither a default. ``--jobs`` runs go at
 once; rerunning the same command after an interruption continues where it stopped.
 ``--teachers-dir`` holds the SAIL authors' teacher files
 (``expert_data_no_img_<Env>_scores_<score>_episodes_1.npz``).
@@ -30,6 +30,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import math
 import os
 import shlex
 import shutil
@@ -60,8 +61,8 @@ WEAK_TEACHERS = {
     "Swimmer-v4": "weak_swimmer",
     "HalfCheetah-v4": "early_halfcheetah",
 }
-# The envs whose episodes end only at the time limit (no fall ends them)
-NO_EARLY_TERMINATION = ("Swimmer-v4", "HalfCheetah-v4")
+# -log(1 - D) - log 2: SAIL's reward minus its value at D = 1/2, so negative on the rows D calls the agent's
+CENTRED = (f"algo.reward.shift={-math.log(2)}",)
 WEAK_TEACHERS_DIR = REPO / "benchmarks" / "results" / "campaign" / "teachers"
 # What a run's report needs from its logs: the evaluation curve, then the diagnostics that explain
 # it (D's accuracy and rewards on both sides, Q, the threshold C and promotions, alpha, speed).
@@ -162,19 +163,15 @@ def plan() -> list[Cell]:
         for seed in (0, 1, 2)
         for precision in ("fp32", "bf16")
     ]
-    # The critic rewarded with D's logit (the weak-teacher study's candidate remedy), its own rows
-    # ("<teacher>-logit") beside the defaults': the weak teachers and the paper's on the envs
-    # without early termination, 3 seeds; Hopper and Walker2d, where the logit's negative reward
-    # may pay a fall, seed 0. Not in the default stages, as it comes after the main table.
-    logit = ("algo.reward.kind=airl",)
+    # SAIL's reward centred at D = 1/2 (the weak-teacher study's candidate remedy, ours), its own
+    # rows ("<teacher>-centred") beside the defaults': the weak teachers and the paper's on every
+    # env, seed by seed. Not in the default stages, as it comes after the main table.
     for seed in (0, 1, 2):
         cells += [
-            Cell("logit", env, "sail", seed, 300_000, f"{label}-logit", logit) for env, label in WEAK_TEACHERS.items()
+            Cell("centred", env, "sail", seed, 300_000, f"{label}-centred", CENTRED)
+            for env, label in WEAK_TEACHERS.items()
         ]
-        cells += [Cell("logit", env, "sail", seed, 300_000, "paper-logit", logit) for env in NO_EARLY_TERMINATION]
-    cells += [
-        Cell("logit", env, "sail", 0, 300_000, "paper-logit", logit) for env in ENVS if env not in NO_EARLY_TERMINATION
-    ]
+        cells += [Cell("centred", env, "sail", seed, 300_000, "paper-centred", CENTRED) for env in ENVS]
     return cells
 
 
@@ -187,8 +184,8 @@ def device_of(overrides: list[str]) -> str:
 def teacher_path(
     cell: Cell, teachers_dir: Path | None, random_teacher: Path | None, weak_dir: Path = WEAK_TEACHERS_DIR
 ) -> Path | None:
-    if cell.stage in ("weak", "logit") and not cell.teacher.startswith("paper"):
-        return weak_dir / cell.teacher.removesuffix("-logit")
+    if cell.stage in ("weak", "centred") and not cell.teacher.startswith("paper"):
+        return weak_dir / cell.teacher.removesuffix("-centred")
     if cell.teacher.startswith("paper"):
         return teachers_dir / PAPER_TEACHERS[cell.env]
     if cell.teacher == "random":
@@ -269,10 +266,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--stages",
         nargs="+",
-        choices=["main", "scale", "teachers", "buffer", "weak", "precision", "logit"],
+        choices=["main", "scale", "teachers", "buffer", "weak", "precision", "centred"],
         default=["main", "scale", "teachers", "buffer"],
         help="weak (SAIL with weak teachers), precision (fp32 against bf16: it needs bf16 hardware) and "
-        "logit (SAIL with D's logit as the critic's reward) are never defaults",
+        "centred (SAIL with its reward centred at D = 1/2) are never defaults",
     )
     parser.add_argument(
         "--overrides",
@@ -299,7 +296,7 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"--teachers-dir {args.teachers_dir} lacks {', '.join(missing)}")
     teachers_dir = None if args.teachers_dir is None else args.teachers_dir.resolve()
     weak_dir = args.weak_teachers_dir.resolve()
-    weak = {c.teacher.removesuffix("-logit") for c in cells if c.stage in ("weak", "logit")} - {"paper"}
+    weak = {c.teacher.removesuffix("-centred") for c in cells if c.stage in ("weak", "centred")} - {"paper"}
     missing = sorted(label for label in weak if not (weak_dir / label).is_dir())
     if missing:
         parser.error(f"--weak-teachers-dir {weak_dir} lacks {', '.join(missing)} (see benchmarks/README.md)")
