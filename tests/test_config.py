@@ -315,5 +315,10 @@ def test_flush_denormal_reaches_torch():
         assert (denormal * 1.0).item() == 0.0 and torch.get_num_threads() == threads
         set_cpu_math(0, flush_denormal=False)
         assert (denormal * 1.0).item() != 0.0
+        # with 2 threads, an op large enough to be split across torch's intra-op workers flushes on each
+        large = torch.full((1 << 20,), 1e-39)
+        set_cpu_math(2, flush_denormal=True)
+        assert torch.get_num_threads() == 2 and not (large * 1.0).any()
     finally:
         torch.set_flush_denormal(False)  # torch's default, for the tests after this one
+        torch.set_num_threads(threads)
