@@ -13,9 +13,10 @@ cell: seed 0 of every cell first, then the other seeds, then the 1M-frame runs, 
 teacher-quality and teacher-rule sweeps. ``--stages precision`` (never a default) pairs
 ``optim.precision=fp32`` and ``bf16`` on Hopper-v4, 100k frames, seeds 0-2; it needs bf16
 hardware (AVX-512 or AMX, or a GPU with ``--overrides device=cuda``). ``--stages weak`` runs the
-defaults with the weak teachers, and ``--stages centred`` SAIL with its reward centred at D = 1/2
-(``algo.reward.shift=-log 2``; teacher labels ``<teacher>-centred``), neither a default. ``--jobs`` runs go at
-once; rerunning the same command after an interruption continues where it stopped.
+defaults with the weak teachers, ``--stages centred`` SAIL with its reward centred at D = 1/2
+(``algo.reward.shift=-log 2``; teacher labels ``<teacher>-centred``), and ``--stages logit`` SAIL with
+D's logit (``algo.reward.kind=airl``; ``<teacher>-logit``) on Swimmer and HalfCheetah, none a default.
+``--jobs`` runs go at once; rerunning the same command after an interruption continues where it stopped.
 ``--teachers-dir`` holds the SAIL authors' teacher files
 (``expert_data_no_img_<Env>_scores_<score>_episodes_1.npz``).
 
@@ -63,6 +64,9 @@ WEAK_TEACHERS = {
 }
 # -log(1 - D) - log 2: SAIL's reward minus its value at D = 1/2, so negative on the rows D calls the agent's
 CENTRED = (f"algo.reward.shift={-math.log(2)}",)
+# D's logit log D - log(1 - D), negative on agent rows: it can pay a fall, so only where no fall ends an episode
+LOGIT = ("algo.reward.kind=airl",)
+NO_EARLY_TERMINATION = ("Swimmer-v4", "HalfCheetah-v4")
 WEAK_TEACHERS_DIR = REPO / "benchmarks" / "results" / "campaign" / "teachers"
 # What a run's report needs from its logs: the evaluation curve, then the diagnostics that explain
 # it (D's accuracy and rewards on both sides, Q, the threshold C and promotions, alpha, speed).
@@ -172,6 +176,13 @@ def plan() -> list[Cell]:
             for env, label in WEAK_TEACHERS.items()
         ]
         cells += [Cell("centred", env, "sail", seed, 300_000, "paper-centred", CENTRED) for env in ENVS]
+    # D's logit (the weak-teacher advice where episodes end only at the time limit; ours): the weak
+    # teachers and the paper's on Swimmer and HalfCheetah, seed by seed ("<teacher>-logit")
+    for seed in (0, 1, 2):
+        cells += [
+            Cell("logit", env, "sail", seed, 300_000, f"{label}-logit", LOGIT) for env, label in WEAK_TEACHERS.items()
+        ]
+        cells += [Cell("logit", env, "sail", seed, 300_000, "paper-logit", LOGIT) for env in NO_EARLY_TERMINATION]
     return cells
 
 
@@ -184,8 +195,8 @@ def device_of(overrides: list[str]) -> str:
 def teacher_path(
     cell: Cell, teachers_dir: Path | None, random_teacher: Path | None, weak_dir: Path = WEAK_TEACHERS_DIR
 ) -> Path | None:
-    if cell.stage in ("weak", "centred") and not cell.teacher.startswith("paper"):
-        return weak_dir / cell.teacher.removesuffix("-centred")
+    if cell.stage in ("weak", "centred", "logit") and not cell.teacher.startswith("paper"):
+        return weak_dir / cell.teacher.removesuffix(f"-{cell.stage}")
     if cell.teacher.startswith("paper"):
         return teachers_dir / PAPER_TEACHERS[cell.env]
     if cell.teacher == "random":
@@ -266,10 +277,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--stages",
         nargs="+",
-        choices=["main", "scale", "teachers", "buffer", "weak", "precision", "centred"],
+        choices=["main", "scale", "teachers", "buffer", "weak", "precision", "centred", "logit"],
         default=["main", "scale", "teachers", "buffer"],
         help="weak (SAIL with weak teachers), precision (fp32 against bf16: it needs bf16 hardware) and "
-        "centred (SAIL with its reward centred at D = 1/2) are never defaults",
+        "centred (SAIL with its reward centred at D = 1/2) and logit (SAIL with D's logit) are never defaults",
     )
     parser.add_argument(
         "--overrides",
@@ -296,7 +307,8 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"--teachers-dir {args.teachers_dir} lacks {', '.join(missing)}")
     teachers_dir = None if args.teachers_dir is None else args.teachers_dir.resolve()
     weak_dir = args.weak_teachers_dir.resolve()
-    weak = {c.teacher.removesuffix("-centred") for c in cells if c.stage in ("weak", "centred")} - {"paper"}
+    weak = {c.teacher.removesuffix(f"-{c.stage}") for c in cells if c.stage in ("weak", "centred", "logit")}
+    weak -= {"paper"}
     missing = sorted(label for label in weak if not (weak_dir / label).is_dir())
     if missing:
         parser.error(f"--weak-teachers-dir {weak_dir} lacks {', '.join(missing)} (see benchmarks/README.md)")

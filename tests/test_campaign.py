@@ -29,7 +29,7 @@ def test_plan_fills_the_table_seed_0_first():
     assert counts["td3_delayed", 0] == counts["dac_published", 0] == 4  # one seed per env
     assert len(main) == 44 and {c.frames for c in main} == {300_000}
     # the main table precedes the 1M-frame runs, which precede the two sweeps (seed 0 of both first)
-    order = {"main": 0, "scale": 1, "teachers": 2, "buffer": 2, "weak": 3, "precision": 4, "centred": 5}
+    order = {"main": 0, "scale": 1, "teachers": 2, "buffer": 2, "weak": 3, "precision": 4, "centred": 5, "logit": 6}
     stages = [order[c.stage] for c in cells]
     assert stages == sorted(stages)
     sweeps = [c.seed for c in cells if order[c.stage] == 2]
@@ -60,6 +60,21 @@ def test_plan_fills_the_table_seed_0_first():
     ]
     assert {(c.method, c.frames, c.overrides) for c in cells if c.stage == "centred"} == {
         ("sail", 300_000, ("algo.reward.shift=-0.6931471805599453",))
+    }
+    # D's logit where no fall ends an episode: each weak teacher, then the paper's on Swimmer and HalfCheetah
+    logit = [(c.env, c.seed, c.teacher) for c in cells if c.stage == "logit"]
+    assert logit == [
+        cell
+        for seed in (0, 1, 2)
+        for cell in (
+            ("Swimmer-v4", seed, "weak_swimmer-logit"),
+            ("HalfCheetah-v4", seed, "early_halfcheetah-logit"),
+            ("Swimmer-v4", seed, "paper-logit"),
+            ("HalfCheetah-v4", seed, "paper-logit"),
+        )
+    ]
+    assert {(c.method, c.frames, c.overrides) for c in cells if c.stage == "logit"} == {
+        ("sail", 300_000, ("algo.reward.kind=airl",))
     }
     # fp32 beside bf16, seed by seed, on the paper's Hopper teacher
     precision = [(c.env, c.seed, c.frames, c.teacher, c.overrides) for c in cells if c.stage == "precision"]
@@ -185,8 +200,9 @@ def test_matrix_records_every_stage_and_label(tmp_path, monkeypatch):
         campaign.subprocess, "run", lambda cmd, **kw: launched.append(cmd) or argparse.Namespace(returncode=0)
     )
     assert campaign.main(["--teachers-dir", str(teachers), "--out", str(tmp_path / "out"), "--jobs", "1"]) == 0
-    default = [c for c in campaign.plan() if c.teacher != "random" and c.stage not in ("weak", "precision", "centred")]
-    assert len(launched) == len(default)  # not the weak, precision and centred stages: never defaults
+    never = ("weak", "precision", "centred", "logit")
+    default = [c for c in campaign.plan() if c.teacher != "random" and c.stage not in never]
+    assert len(launched) == len(default)  # not the weak, precision, centred and logit stages: never defaults
     main = json.loads((tmp_path / "out" / "main" / "matrix.json").read_text())
     assert main["teachers"] == {"paper": str(teachers)}  # the authors' folder: one file per env
     assert {(s["envs"][0], s["methods"][0], s["seeds"][0]) for s in main["sweeps"]} == {
@@ -230,31 +246,40 @@ def test_weak_stage_runs_each_weak_teacher_and_refuses_a_missing_one(tmp_path, c
     assert "--teachers-dir is required by --stages main scale teachers buffer" in capsys.readouterr().err
 
 
-def test_centred_stage_gives_the_weak_and_the_paper_teachers_and_the_reward_override(tmp_path, capsys, monkeypatch):
+@pytest.mark.parametrize(
+    "stage, override, runs, third",
+    [
+        ("centred", "algo.reward.shift=-0.6931471805599453", 18, "Hopper-v4"),
+        ("logit", "algo.reward.kind=airl", 12, "Swimmer-v4"),
+    ],
+)
+def test_reward_stages_give_the_weak_and_the_paper_teachers_and_the_override(
+    tmp_path, capsys, monkeypatch, stage, override, runs, third
+):
     teachers, weak, out = tmp_path / "teachers", tmp_path / "weak", tmp_path / "out"
     teachers.mkdir()
     for name in campaign.PAPER_TEACHERS.values():
         (teachers / name).touch()
     for label in campaign.WEAK_TEACHERS.values():
         (weak / label).mkdir(parents=True)
-    args = ["--teachers-dir", str(teachers), "--weak-teachers-dir", str(weak), "--out", str(out), "--stages", "centred"]
+    args = ["--teachers-dir", str(teachers), "--weak-teachers-dir", str(weak), "--out", str(out), "--stages", stage]
     assert campaign.main([*args, "--dry-run"]) == 0
     lines = capsys.readouterr().out.splitlines()
-    assert len(lines) == 18 and all("algo.reward.shift=-0.6931471805599453" in line for line in lines)
-    # a weak teacher's label drops "-centred" for its folder; the paper's label gives the authors' file
+    assert len(lines) == runs and all(override in line for line in lines)
+    # a weak teacher's label drops the stage's suffix for its folder; the paper's label gives the authors' file
     assert f"teacher.path={weak / 'weak_swimmer'} " in lines[0]
-    assert lines[0].endswith(f"hydra.run.dir={out / 'centred' / 'weak_swimmer-centred' / 'Swimmer-v4' / 'sail' / 'seed0'}")
-    assert f"teacher.path={teachers / campaign.PAPER_TEACHERS['Hopper-v4']} " in lines[2]
-    assert lines[2].endswith(f"hydra.run.dir={out / 'centred' / 'paper-centred' / 'Hopper-v4' / 'sail' / 'seed0'}")
-    assert "env=Swimmer-v4" in lines[-1] and "seed=2" in lines[-1]
+    assert lines[0].endswith(f"hydra.run.dir={out / stage / f'weak_swimmer-{stage}' / 'Swimmer-v4' / 'sail' / 'seed0'}")
+    assert f"teacher.path={teachers / campaign.PAPER_TEACHERS[third]} " in lines[2]
+    assert lines[2].endswith(f"hydra.run.dir={out / stage / f'paper-{stage}' / third / 'sail' / 'seed0'}")
+    assert "seed=2" in lines[-1]
     # the stage's matrix gives each label its teacher, for aggregate.py
     monkeypatch.setattr(campaign.subprocess, "run", lambda cmd, **kw: argparse.Namespace(returncode=0))
     assert campaign.main(args) == 0
-    matrix = json.loads((out / "centred" / "matrix.json").read_text())
+    matrix = json.loads((out / stage / "matrix.json").read_text())
     assert matrix["teachers"] == {
-        "weak_swimmer-centred": str(weak / "weak_swimmer"),
-        "early_halfcheetah-centred": str(weak / "early_halfcheetah"),
-        "paper-centred": str(teachers),
+        f"weak_swimmer-{stage}": str(weak / "weak_swimmer"),
+        f"early_halfcheetah-{stage}": str(weak / "early_halfcheetah"),
+        f"paper-{stage}": str(teachers),
     }
     (weak / "weak_swimmer").rmdir()
     with pytest.raises(SystemExit):

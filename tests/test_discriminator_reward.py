@@ -208,7 +208,8 @@ class TestDiscriminatorReward:
         torch.testing.assert_close(floored(td.clone())["next", "reward"], expected)
         # the shift comes before coef, and mode="add" adds the whole to the reward already there
         scaled = DiscriminatorReward(disc, kind="airl", shift=2.0, coef=0.5, mode="add")(td.clone())
-        torch.testing.assert_close(scaled["next", "reward"], 3.0 + 0.5 * (torch.tensor([[6.0], [-6.0], [0.0], [-1.0]]) + 2.0))
+        logit = torch.tensor([[6.0], [-6.0], [0.0], [-1.0]])
+        torch.testing.assert_close(scaled["next", "reward"], 3.0 + 0.5 * (logit + 2.0))
         gail = DiscriminatorReward(disc, shift=-1.0)(td.clone())["next", "reward"]
         torch.testing.assert_close(gail, F.softplus(td["observation"]) - 1.0)
 
