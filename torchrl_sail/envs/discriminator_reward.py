@@ -106,9 +106,10 @@ class DiscriminatorReward(Transform):
             reward ``-log(1 - clip(D, 0.01, 0.99))``. Computed exactly as a clamp of the logit
             to ``[logit(low), logit(high)]``. Defaults to ``None`` (no clipping).
         shift (float, optional): added to the reward before ``coef``: ``r = coef * (f(ℓ) + shift)``.
-            With ``kind="airl"`` and ``clip=(0.01, 0.99)``, ``shift=log(99) ≈ 4.595`` makes the
-            logit reward ``>= 0`` (in ``[0, 2 log 99]``) while keeping its slope 1 inside the clip,
-            so an episode that ends early (a fall) is never paid for ending. Defaults to ``0.0``.
+            ``shift=-log(2)`` centres ``-log(1 - D)`` at ``D = 1/2`` (negative where D says agent);
+            with ``kind="airl"`` and ``clip=(0.01, 0.99)``, ``shift=log(99)`` floors the logit at 0
+            (in ``[0, 2 log 99]``). A reward below 0 can pay an episode for ending early (a fall),
+            one above 0 for lasting. Defaults to ``0.0``.
         coef (float, optional): the reward is multiplied by this. Defaults to ``1.0``.
         mode (str, optional): ``"replace"`` writes ``coef * r`` to ``out_key``; ``"add"``
             adds it to the value already there (e.g. ``r_env + coef * r_D`` as POfD
