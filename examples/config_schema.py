@@ -91,8 +91,8 @@ class RewardConfig:
     source: RewardSource = RewardSource.discriminator
     kind: RewardKind = RewardKind.gail  # gail: -log(1 - D) (SAIL, GAIL) | airl: log D - log(1 - D) (DAC, AIRL)
     clip: Optional[List[float]] = None  # [low, high]: D clipped before the reward (the SAIL authors' DAC)
-    # added before coef: r = coef * (f(D) + shift); airl with clip [0.01, 0.99] and shift log(99) = 4.595
-    # is the logit floored at 0 (never pays an early end); ours, not in the authors' code
+    # added before coef: r = coef * (f(D) + shift); -0.693147 (-log 2) centres -log(1 - D) at D = 1/2,
+    # negative where D says agent (the weak-teacher candidate, docs/training.md); ours, not the authors'
     shift: float = 0.0
     coef: float = 1.0  # weight of D's reward
     # learner=ppo: coef *= coef_decay after every on-policy batch (POfD's lambda_1 schedule)
