@@ -19,8 +19,8 @@ name (``shipped`` for the env's default teacher). Writes to ``--out``:
     teacher's (``summary.json``'s ``passed_teacher_at_frame``, else from the curve; None if never).
 
   Per group, over seeds: the headline mean (the first column after env, teacher and method:
-  "last-5 mean", ``last5_mean`` in the CSV), its sample std (ddof=1) and 95% BCa bootstrap CI
-  of the mean (scipy, fixed seed; both n/a for one seed), the mean final and mean best
+  "last-5 mean", ``last5_mean`` in the CSV), its sample std (ddof=1) and 95% Student-t CI
+  of the mean (both n/a for one seed), the mean final and mean best
   evaluation, headline mean / teacher return (the median of the seeds' teacher returns), and
   the frames to pass the teacher (median over the seeds that passed, with "k/n seeds passed").
   A run without an eval CSV (``logger.backends`` without csv) counts ``summary.json``'s final
@@ -100,8 +100,6 @@ README_START, README_END = "<!-- RESULTS: START -->", "<!-- RESULTS: END -->"
 HEADLINE_EVALS = 5  # the headline figure of a run: the mean of its last 5 evaluations
 HEADLINE = f"last{HEADLINE_EVALS}"  # its CSV column prefix
 SPEC_EVAL_EPISODES = 10  # episodes per evaluation the reporting spec asks for
-CI_RESAMPLES = 10_000
-CI_SEED = 0
 NA = "n/a"
 # Config keys that legitimately differ between the seeds of one group.
 PER_RUN_KEYS = ("seed", "resume", "teacher.path", "device", "threads", "flush_denormal", "logger.")
@@ -223,7 +221,7 @@ class Group:
         values = self.values
         mean = statistics.fmean(values)
         std = statistics.stdev(values) if len(values) > 1 else None
-        low, high = bootstrap_ci(values)
+        low, high = t_ci(values)
         passed = [run.passed_teacher_at() for run in self.runs]
         passed = [frames for frames in passed if frames is not None]
         teacher = self.teacher_return
@@ -243,32 +241,21 @@ class Group:
         }
 
 
-def bootstrap_ci(values: list[float], confidence: float = 0.95) -> tuple[float | None, float | None]:
-    """95% BCa bootstrap CI of the mean (scipy, fixed seed): (None, None) for fewer than 2 values.
+def t_ci(values: list[float], confidence: float = 0.95) -> tuple[float | None, float | None]:
+    """Student-t CI of the mean, ``mean ± t(n - 1) * std / sqrt(n)``: (None, None) for fewer than 2 values.
 
-    Equal values give (value, value): BCa is undefined there, and so is any spread.
+    With the 2-5 seeds of a cell, a bootstrap interval can only draw resamples of those few values
+    (with 2, its limits are the two values themselves) and covers far less than it claims; the t
+    interval's width is what so few seeds can say.
     """
     if len(values) < 2:
         return None, None
-    if min(values) == max(values):
-        return values[0], values[0]
-    from scipy.stats import bootstrap  # imported here so that reading runs needs no scipy
+    from scipy.stats import t  # imported here so that reading runs needs no scipy
 
-    def interval(method: str) -> tuple[float, float]:
-        result = bootstrap(
-            (np.asarray(values, dtype=float),),
-            np.mean,
-            confidence_level=confidence,
-            n_resamples=CI_RESAMPLES,
-            method=method,
-            rng=np.random.default_rng(CI_SEED),
-        )
-        return float(result.confidence_interval.low), float(result.confidence_interval.high)
-
-    low, high = interval("BCa")
-    if not (math.isfinite(low) and math.isfinite(high)):  # BCa's acceleration can be undefined
-        low, high = interval("percentile")
-    return low, high
+    mean, half = statistics.fmean(values), 0.0
+    if min(values) != max(values):
+        half = float(t.ppf((1 + confidence) / 2, len(values) - 1)) * statistics.stdev(values) / math.sqrt(len(values))
+    return mean - half, mean + half
 
 
 # --- reading run folders
@@ -653,7 +640,7 @@ def markdown(
     lines = [
         f"Headline: the mean of each run's last {HEADLINE_EVALS} deterministic evaluations (each the mean "
         f"return of eval.episodes episodes), over seeds: mean ± sample std (ddof=1; n/a for one seed) and "
-        f"its 95% BCa bootstrap CI (scipy, {CI_RESAMPLES} resamples, seed {CI_SEED}; n/a for one seed). "
+        "its 95% Student-t CI (mean ± t(n - 1) std / sqrt(n); n/a for one seed). "
         "† a seed had fewer evaluations, all of them averaged (see Notes). Final and best: the mean over "
         "seeds of each run's last and highest evaluation. vs teacher: headline mean / teacher return. "
         "Frames to pass teacher: the frames at a run's first evaluation above the teacher's return, median "

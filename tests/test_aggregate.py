@@ -155,8 +155,14 @@ def test_group_headline_mean_std_ci_final_best_and_seeds_passed(tmp_path):
     assert float(row["frames_to_teacher_median"]) == 2500.0 and row["seeds_past_teacher"] == "2/3"
     assert row["n_seeds"] == "3" and row["seeds"] == "0 1 2" and row["headline_evals_min"] == "5"
     low, high = float(row["ci95_low"]), float(row["ci95_high"])
-    assert 100.0 <= low < 200.0 < high <= 300.0
-    assert aggregate.bootstrap_ci([100.0, 200.0, 300.0]) == (pytest.approx(low), pytest.approx(high))  # fixed seed
+    # mean 200 ± t(2) = 4.302653 times std 100 / sqrt(3): 248.41
+    assert (low, high) == (pytest.approx(200 - 248.4138, abs=1e-3), pytest.approx(200 + 248.4138, abs=1e-3))
+    # two seeds: t(1) = 12.7062; equal values: no spread; one value: none
+    assert aggregate.t_ci([10.0, 20.0]) == (
+        pytest.approx(15 - 12.7062 * 5, abs=1e-3),
+        pytest.approx(15 + 63.531, abs=1e-3),
+    )
+    assert aggregate.t_ci([7.0, 7.0, 7.0]) == (7.0, 7.0) and aggregate.t_ci([7.0]) == (None, None)
     assert list(read_csv(tmp_path / "out" / "results.csv")[0])[3] == "last5_mean"  # the headline column first
     assert "| method | last-5 mean ± std | 95% CI |" in text
     assert (
