@@ -11,7 +11,9 @@ log; on the 1000-step envs, HalfCheetah and Swimmer, every episode alone), the p
 ``C`` and the promotions so far (their maximum in the window), the mean teacher share alpha,
 the mean D reward of the critic's batches (under the method's ``algo.reward``), the means of
 the discriminator's accuracy, ``-log(1 - D)`` (SAIL's reward) and mean logit on teacher / agent
-rows of its own batches, the agent rows' spread (std) of ``-log(1 - D)`` and of the logit, the critic's mean Q, the
+rows of its own batches, the agent rows' spread (std) of ``-log(1 - D)`` and of the logit, the critic's mean Q,
+the TD3 actor's saturation on the agent's rows (the share of action components with ``|tanh(x)| >= 0.99``)
+and mean pre-tanh ``|x|``, the
 gradient penalty and the share of D steps ``optim.discriminator.max_accuracy`` skipped. A tag a
 run did not log prints ``-``.
 """
@@ -42,6 +44,8 @@ COLUMNS = (
     ("logit agent", "d/logit_agent", mean),
     ("logit agent std", "d/logit_agent_std", mean),
     ("Q", "sail/q_mean", mean),
+    ("actor saturated", "actor/saturation", mean),
+    ("actor |pre-tanh|", "actor/preactivation", mean),
     ("GP", "d/grad_penalty", mean),
     ("D skipped", "d/skipped", mean),
 )

@@ -17,6 +17,7 @@ from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.record.loggers import get_logger
 
 from torchrl_sail.runs import (
+    actor_summary,
     add_evaluation,
     discriminator_summary,
     new_run,
@@ -178,6 +179,8 @@ def write_run_summary(run_dir: Path, cfg: DictConfig, *, teacher_return: float, 
             **results,
             # D's saturation, skipped steps and last statistics, from the logs (absent without a D)
             **({"discriminator": d} if (d := discriminator_summary(run_dir)) is not None else {}),
+            # the TD3 actor's tanh saturation, from the logs (absent for SAC, PPO and BC)
+            **({"actor": a} if (a := actor_summary(run_dir)) is not None else {}),
         },
         code_dir=EXAMPLES_DIR,
     )

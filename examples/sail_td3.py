@@ -46,6 +46,7 @@ from run_utils import (
 from torchrl.checkpoint import Checkpoint, GlobalRNGState
 from utils import (
     FilledRows,
+    actor_saturation,
     discriminator_block,
     make_absorbing,
     make_agent,
@@ -228,6 +229,7 @@ def main(cfg):  # noqa: F821
                             )
                         )
                 metrics.update({f"sail/{key}": value for key, value in last.items()})
+                metrics.update(actor_saturation(cfg, actor, batch))
             num_d_steps = crossings(d.every_frames, warmup, before, frames) * d.steps if uses_discriminator else 0
             if num_d_steps:
                 with timeit("sample"):

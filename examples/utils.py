@@ -9,6 +9,7 @@ off-policy agent (``make_agent``, ``make_discriminator``, ``make_losses``, ``mak
 from __future__ import annotations
 
 import copy
+import math
 from functools import partial
 from pathlib import Path
 
@@ -292,6 +293,30 @@ def make_agent(cfg: DictConfig, env):
         return actor, critic, TensorDictSequential(actor, *([noise] if noise is not None else []))
     # the same action as TensorDictSequential(actor, noise), one tensordict read and write per env step
     return actor, critic, TD3ExplorationPolicy(actor, noise)
+
+
+# |tanh(x)| >= 0.99 from |x| >= atanh(0.99) = 2.65 on, where the actor's gradient through its
+# tanh, 1 - tanh(x)^2, is below 0.02 of its value at 0
+SATURATED_PREACTIVATION = math.atanh(0.99)
+
+
+@torch.no_grad()
+def actor_saturation(cfg: DictConfig, actor, batch) -> dict:
+    """How far the TD3 actor's tanh is saturated on the agent's rows of a batch (``{}`` for SAC).
+
+    ``actor/saturation``: the share of action components with ``|tanh(x)| >= 0.99``, ``x`` the
+    actor's pre-tanh output; ``actor/preactivation``: the mean ``|x|``. An actor saturated on
+    every component no longer moves (its gradient through the tanh vanishes), whatever its
+    critic says: what a stalled run looks like from the actor's side.
+    """
+    if cfg.algo.learner != "td3":
+        return {}
+    rows = batch[~batch["is_teacher"]] if "is_teacher" in batch.keys() else batch
+    if not rows.shape[0]:
+        return {}
+    body = actor.module[0]  # the MLP before TanhModule (make_agent)
+    x = body(rows.select(*body.in_keys).copy())[body.out_keys[0]].abs()
+    return {"actor/saturation": (x >= SATURATED_PREACTIVATION).float().mean(), "actor/preactivation": x.mean()}
 
 
 def make_discriminator(cfg: DictConfig, env) -> Discriminator:

@@ -322,3 +322,29 @@ def test_flush_denormal_reaches_torch():
     finally:
         torch.set_flush_denormal(False)  # torch's default, for the tests after this one
         torch.set_num_threads(threads)
+
+
+def test_actor_saturation_on_the_agent_rows():
+    import torch
+    from tensordict import TensorDict
+    from utils import actor_saturation, make_agent
+
+    from torchrl_sail import make_sail_env
+
+    cfg = make("network.actor_cells=[4]")
+    env = make_sail_env("Pendulum-v1", max_episode_steps=200)
+    actor, _, _ = make_agent(cfg, env)
+    mlp = actor.module[0].module
+    with torch.no_grad():  # pre-tanh x = the observation's first entry
+        for p in mlp.parameters():
+            p.zero_()
+        mlp[0].weight[0, 0] = 1.0
+        mlp[-1].weight[0, 0] = 1.0
+    obs = torch.zeros(6, env.observation_spec["observation"].shape[-1])
+    obs[:, 0] = torch.tensor([0.5, 2.0, 3.0, 0.0, 100.0, 100.0])  # |x| >= atanh(0.99) = 2.647: 3.0 and the teacher's
+    batch = TensorDict(observation=obs, is_teacher=torch.tensor([False] * 4 + [True] * 2), batch_size=[6])
+    out = actor_saturation(cfg, actor, batch)  # teacher rows (100.0) left out
+    assert out["actor/saturation"].item() == pytest.approx(1 / 4)  # agent x: 0.5, 2.0, 3.0, 0.0
+    assert out["actor/preactivation"].item() == pytest.approx((0.5 + 2.0 + 3.0 + 0.0) / 4)
+    assert actor_saturation(cfg, actor, batch[4:]) == {}  # no agent row
+    assert actor_saturation(make("algo=sail_sac"), actor, batch) == {}  # SAC's actor has no pre-tanh action

@@ -65,6 +65,8 @@ def test_smoke_hopper_outputs(tmp_path, teacher_dir):
         "d/logit_agent_std",
         "sail/loss_qvalue",
         "sail/d_reward_mean",
+        "actor/saturation",
+        "actor/preactivation",
         "time/fps",
         "replay/size",
     ]:
@@ -83,6 +85,13 @@ def test_smoke_hopper_outputs(tmp_path, teacher_dir):
         "reward_agent",
         "logit_teacher",
         "logit_agent",
+    }
+    # the actor's tanh saturation in the summary, from the logged values
+    actor = summary["actor"]
+    assert 0 <= actor["saturated_fraction"] <= 1
+    assert actor["last"] == {
+        "saturation": read_scalar(run_dir, "actor/saturation")[-1][1],
+        "preactivation": read_scalar(run_dir, "actor/preactivation")[-1][1],
     }
     png = (run_dir / "learning_curve.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 5000

@@ -55,6 +55,7 @@ __all__ = [
     "config_changes",
     "cpu_flags",
     "cpu_model",
+    "actor_summary",
     "discriminator_summary",
     "is_finished",
     "last_checkpoint",
@@ -530,6 +531,49 @@ def discriminator_summary(run_dir: Path) -> dict | None:
         "last_saturated_frame": saturated[-1] if saturated else None,
         "skipped_fraction": sum(skipped) / len(skipped) if skipped else None,
         "last": last,
+    }
+
+
+#: At or above this share of saturated action components the actor is said to be saturated.
+ACTOR_SATURATED = 0.9
+
+
+def actor_summary(run_dir: Path) -> dict | None:
+    """What a TD3 run's logged actor saturation says, for its ``summary.json``.
+
+    From the ``actor/saturation`` and ``actor/preactivation`` scalars (the share of the agent
+    rows' action components with ``|tanh(x)| >= 0.99`` and the mean ``|x|`` of the actor's
+    pre-tanh output, on the last TD3 batch before each log): ``saturated_fraction``, the share
+    of logged points with a saturation of at least :data:`ACTOR_SATURATED`;
+    ``last_saturated_frame``, the last such point (``None``: never); and ``last``, the last
+    logged saturation and pre-activation. Also reads a results copy (``scalars.csv``).
+
+    Returns:
+        the summary, or ``None`` when the run logged no actor saturation (SAC, PPO, BC).
+
+    Examples:
+        >>> import tempfile
+        >>> run_dir = Path(tempfile.mkdtemp())
+        >>> actor = run_dir / "logs" / "scalars" / "actor"
+        >>> actor.mkdir(parents=True)
+        >>> _ = (actor / "saturation.csv").write_text("1000,0.2\\n2000,0.95\\n3000,1.0\\n4000,0.5\\n")
+        >>> _ = (actor / "preactivation.csv").write_text("1000,1.0\\n2000,6.0\\n3000,11.0\\n4000,2.5\\n")
+        >>> summary = actor_summary(run_dir)
+        >>> summary["saturated_fraction"], summary["last_saturated_frame"], summary["last"]
+        (0.5, 3000, {'saturation': 0.5, 'preactivation': 2.5})
+    """
+    saturation = read_scalar(run_dir, "actor/saturation")
+    if not saturation:
+        return None
+    saturated = [frame for frame, value in saturation if value >= ACTOR_SATURATED]
+    preactivation = read_scalar(run_dir, "actor/preactivation")
+    return {
+        "saturated_fraction": len(saturated) / len(saturation),
+        "last_saturated_frame": saturated[-1] if saturated else None,
+        "last": {
+            "saturation": saturation[-1][1],
+            **({"preactivation": preactivation[-1][1]} if preactivation else {}),
+        },
     }
 
 
