@@ -257,6 +257,9 @@ class OptimConfig:
     actor_updates_after: int = 0  # the actor is first updated at this gradient step (then every policy_delay-th)
     actor_max_grad_norm: Optional[float] = None  # clip the actor's gradients to this global norm
     actor_lr_decay: Optional[LRDecayConfig] = None  # {rate, every_frames}: actor lr * rate ** (frames // every_frames)
+    # adds coef * sum_j x_j^2 to the actor loss, x its pre-tanh output (rlkit's policy_pre_activation_weight;
+    # not the authors'): keeps the tanh out of saturation, where the actor stops moving (docs/training.md)
+    actor_preactivation_coef: float = 0.0
 
 
 @dataclass
@@ -504,6 +507,13 @@ def check_config(cfg: DictConfig) -> None:
             None if o.actor_lr_decay is None else dict(o.actor_lr_decay),
             o.actor_lr_decay is None or cfg.algo.learner == "td3",
             "is TD3's (algo.learner=td3)",
+        ),
+        (
+            "optim.actor_preactivation_coef",
+            o.actor_preactivation_coef,
+            0 <= o.actor_preactivation_coef < math.inf
+            and (o.actor_preactivation_coef == 0 or cfg.algo.learner == "td3"),
+            "must be a finite number >= 0, and 0 unless algo.learner=td3 (a deterministic tanh actor)",
         ),
         ("optim.discriminator.lr", d.lr, d.lr > 0, "must be > 0"),
         ("optim.discriminator.label_smoothing", d.label_smoothing, 0 <= d.label_smoothing < 0.5, "must be in [0, 0.5)"),

@@ -437,6 +437,7 @@ def make_losses(cfg: DictConfig, actor, critic, discriminator, action_spec):
             policy_noise=o.policy_noise,
             noise_clip=o.noise_clip,
             loss_function=o.loss_function,
+            preactivation_coef=o.actor_preactivation_coef,
         )
         share = loss
     loss.make_value_estimator(gamma=o.gamma)

@@ -156,6 +156,8 @@ def test_optional_blocks_are_typed_when_set():
         (["algo=pofd_td3", "algo.reward.coef_decay=0.5"], "and 1 unless algo.learner=ppo"),
         (["algo=pofd", "algo.reward.coef_decay=0"], "algo.reward.coef_decay=0.0: must be in (0, 1]"),
         (["algo.reward.shift=inf"], "algo.reward.shift=inf: must be a finite number"),
+        (["optim.actor_preactivation_coef=-1e-3"], "optim.actor_preactivation_coef=-0.001: must be a finite number"),
+        (["algo=sail_sac", "optim.actor_preactivation_coef=1e-3"], "and 0 unless algo.learner=td3"),
         (["algo=ddpgfd", "algo.nstep.n=1"], "algo.nstep.n=1: must be >= 2 (algo.nstep=null for the 1-step"),
         (["algo=ddpgfd", "algo.nstep.lambda1=0"], "algo.nstep.lambda1=0.0: must be a finite number > 0"),
         (
@@ -348,3 +350,16 @@ def test_actor_saturation_on_the_agent_rows():
     assert out["actor/preactivation"].item() == pytest.approx((0.5 + 2.0 + 3.0 + 0.0) / 4)
     assert actor_saturation(cfg, actor, batch[4:]) == {}  # no agent row
     assert actor_saturation(make("algo=sail_sac"), actor, batch) == {}  # SAC's actor has no pre-tanh action
+
+
+def test_actor_preactivation_coef_reaches_the_loss():
+    from utils import make_agent, make_discriminator, make_losses
+
+    from torchrl_sail import make_sail_env
+
+    cfg = make("optim.actor_preactivation_coef=0.001")
+    check_config(cfg)
+    env = make_sail_env("Pendulum-v1", max_episode_steps=200)
+    actor, critic, _ = make_agent(cfg, env)
+    loss = make_losses(cfg, actor, critic, make_discriminator(cfg, env), env.action_spec)[0]
+    assert loss.preactivation_coef == 0.001 and loss.preactivation_key == "param"

@@ -371,6 +371,10 @@ class TestSAILLoss:
         }
         assert td3_keys | {"alpha", "pred_value_teacher", "pred_value_agent"} == set(out.keys())
         assert set(make_loss(mixing="batch")(batch.clone()).keys()) == td3_keys | {"alpha"} == set(loss.out_keys)
+        penalised = make_loss(mixing="batch", preactivation_coef=1e-3)
+        assert set(penalised(batch.clone()).keys()) == td3_keys | {"alpha", "preactivation_penalty"}
+        assert set(penalised.out_keys) == td3_keys | {"alpha", "preactivation_penalty"}
+        assert set(make_loss(mixing="batch").out_keys) == td3_keys | {"alpha"}  # the class's list is unchanged
         assert td["td_error"].shape == (8,)
         pred = out["pred_value"].mean(0)
         tag = batch["is_teacher"]
@@ -419,6 +423,19 @@ class TestSAILLoss:
         other = make_loss(alpha=0.5, perturb_targets=False)
         other.load_state_dict(loss.state_dict())
         assert float(other.alpha) == 0.75
+
+    @pytest.mark.parametrize("bad", [-0.1, float("inf"), float("nan"), "1e-3"])
+    def test_preactivation_coef_out_of_range_at_construction(self, bad):
+        actor, critic = make_nets()
+        with pytest.raises(ValueError, match="preactivation_coef must be a finite number >= 0"):
+            SAILLoss(actor, critic, action_spec=SPEC, preactivation_coef=bad)
+
+    def test_preactivation_penalty_needs_a_tanh_actor(self):
+        _, critic = make_nets()
+        actor = TensorDictModule(torch.nn.Linear(OBS, ACT), ["observation"], ["action"])
+        with pytest.raises(ValueError, match="without one"):
+            SAILLoss(actor, critic, action_spec=SPEC, preactivation_coef=1e-3)
+        SAILLoss(actor, critic, action_spec=SPEC)  # no penalty: any actor
 
     def test_loss_function_defaults_to_l2(self):
         actor, critic = make_nets()

@@ -343,6 +343,40 @@ class TestTD3Update:
     def test_fused_equals_loss_with_actor_clipping(self):
         assert_same(run_both(UNIT, actor_max_grad_norm=0.5))
 
+    @pytest.mark.parametrize("mixing", ["batch", "weights"])
+    def test_fused_equals_loss_preactivation_penalty(self, mixing):
+        out = run_both(UNIT, loss_kwargs={"preactivation_coef": 0.05, "mixing": mixing, "alpha": 0.3})
+        assert_same(out)
+        assert "preactivation_penalty" in out["fused"][0][0] and "preactivation_penalty" not in out["fused"][0][1]
+
+    @pytest.mark.parametrize("implementation", ["fused", "loss"])
+    def test_preactivation_penalty_by_hand(self, implementation):
+        # A zero critic has dQ/da = 0: with SGD at lr 1 the actor's output bias b moves by
+        # -coef * d/db mean_rows sum_j x_j^2 = -coef * 2 * mean_rows x, x = the pre-tanh output.
+        torch.manual_seed(0)
+        coef = 0.1
+        loss = make_loss(UNIT, preactivation_coef=coef)
+        with torch.no_grad():
+            for p in loss.qvalue_network_params.flatten_keys().values():
+                p.zero_()
+        params = loss.actor_network_params.flatten_keys()
+        update = TD3Update(
+            loss,
+            critic_optimizer=torch.optim.SGD(loss.qvalue_network_params.flatten_keys().values(), lr=1.0),
+            actor_optimizer=torch.optim.SGD(params.values(), lr=1.0),
+            target_updater=SoftUpdate(loss, tau=0.05),
+            implementation=implementation,
+        )
+        batch = make_batch(UNIT, seed=0)
+        bias_key = next(k for k in params.keys() if k.endswith("bias") and params[k].shape == (ACT,))
+        with torch.no_grad(), loss.actor_network_params.to_module(loss.actor_network):
+            x = loss.actor_network(batch.select("observation").copy())["param"]
+        bias = params[bias_key].detach().clone()
+        metrics = update.actor_step(batch)
+        torch.testing.assert_close(params[bias_key].detach(), bias - coef * 2 * x.mean(0))
+        torch.testing.assert_close(metrics["preactivation_penalty"], x.pow(2).sum(-1).mean())
+        torch.testing.assert_close(metrics["loss_actor"], coef * x.pow(2).sum(-1).mean())  # -Q = 0
+
     @pytest.mark.parametrize("nstep", [False, True])
     def test_no_host_sync(self, nstep):
         """The fused step never reads a tensor value on the host (device-agnostic check).

@@ -22,14 +22,16 @@ that ``TD3Loss`` already reads for prioritized-replay weights.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Literal
 
 import torch
 from tensordict import TensorDictBase
-from tensordict.nn import TensorDictModule, dispatch
+from tensordict.nn import TensorDictModule, TensorDictSequential, dispatch
 from tensordict.utils import NestedKey
 from torchrl.data.tensor_specs import TensorSpec
+from torchrl.modules import TanhModule
 from torchrl.objectives import TD3Loss
 
 __all__ = ["SAILLoss"]
@@ -70,6 +72,13 @@ class SAILLoss(TD3Loss):
             ``"batch"``.
         loss_function (str, optional): ``"l2"``, ``"l1"`` or ``"smooth_l1"``. Defaults to
             ``"l2"`` (the authors' MSE; ``TD3Loss`` defaults to ``"smooth_l1"``).
+        preactivation_coef (float, optional): adds ``preactivation_coef * sum_j x_j^2`` to the
+            actor objective, ``x`` the actor's pre-tanh output (the ``in_key`` of its final
+            :class:`~torchrl.modules.TanhModule`), reduced over rows as ``-Q`` is (rlkit's
+            ``policy_pre_activation_weight``). It keeps the tanh out of saturation, where the
+            actor's gradient ``dQ/da (1 - tanh(x)^2)`` vanishes and the actor stops moving.
+            ``> 0`` needs a ``TensorDictSequential`` actor with a ``TanhModule``. Defaults to ``0.0``
+            (TD3's objective).
         **kwargs: the other :class:`~torchrl.objectives.TD3Loss` keyword arguments
             (``action_spec`` or ``bounds``, ``num_qvalue_nets``, ``policy_noise``,
             ``noise_clip``, ``delay_actor``, ``delay_qvalue``, ``separate_losses``,
@@ -112,6 +121,13 @@ class SAILLoss(TD3Loss):
         >>> loss.alpha = 0.0  # e.g. after the first promoted trajectory
         >>> float(loss(batch)["alpha"])
         0.0
+
+        The pre-tanh penalty adds its term to ``loss_actor`` and reports it on its own:
+
+        >>> penalised = SAILLoss(actor, critic, action_spec=spec, preactivation_coef=1e-3)
+        >>> out = penalised(batch)
+        >>> bool(out["preactivation_penalty"] > 0)
+        True
     """
 
     @dataclass
@@ -168,12 +184,26 @@ class SAILLoss(TD3Loss):
         mixing: Literal["batch", "weights"] = "batch",
         action_spec: TensorSpec | None = None,
         loss_function: str = "l2",
+        preactivation_coef: float = 0.0,
         **kwargs,
     ) -> None:
         if not 0.0 <= alpha <= 1.0:
             raise ValueError(f"alpha must be in [0, 1] (the teacher share), got {alpha}.")
         if mixing not in ("batch", "weights"):
             raise ValueError(f"mixing must be 'batch' or 'weights', got {mixing!r}.")
+        if not (isinstance(preactivation_coef, (int, float)) and 0.0 <= preactivation_coef < math.inf):
+            raise ValueError(f"preactivation_coef must be a finite number >= 0, got {preactivation_coef!r}.")
+        self.preactivation_key = None
+        if preactivation_coef > 0:
+            modules = actor_network.module if isinstance(actor_network, TensorDictSequential) else ()
+            tanh = [module for module in modules if isinstance(module, TanhModule)]
+            if not tanh:
+                raise ValueError(
+                    "preactivation_coef > 0 penalises the pre-tanh output of the actor's TanhModule; "
+                    f"this actor is a {type(actor_network).__name__} without one."
+                )
+            self.preactivation_key = tanh[-1].in_keys[0]
+        self.preactivation_coef = float(preactivation_coef)
         self.mixing = mixing
         super().__init__(
             actor_network,
@@ -185,6 +215,8 @@ class SAILLoss(TD3Loss):
         # float dtype: an int alpha (0 or 1) would make an int buffer that in-place
         # scheduling to 0.5 would truncate
         self.register_coeff_buffer("alpha", alpha, device=self.max_action.device, dtype=torch.get_default_dtype())
+        if self.preactivation_coef:
+            self.out_keys = [*self.out_keys, "preactivation_penalty"]
 
     # TD3Loss's private hooks overridden or called here: listed in torchrl_sail._compat.SUBCLASS_HOOKS
     def _set_in_keys(self):
@@ -220,6 +252,25 @@ class SAILLoss(TD3Loss):
         weights = base * torch.where(teacher, teacher_share, agent_share)
         # average weight 1 instead of sum 1: same "mean", and "sum"/"none" keep TD3's scale
         return weights * (teacher | agent).sum()
+
+    def actor_loss(self, tensordict: TensorDictBase) -> tuple[torch.Tensor, dict]:
+        """TD3's actor loss, plus ``preactivation_coef`` times the pre-tanh penalty when it is > 0.
+
+        The metadata then holds ``preactivation_penalty``, the penalty before the coefficient.
+        """
+        loss_actor, metadata = super().actor_loss(tensordict)
+        if not self.preactivation_coef:
+            return loss_actor, metadata
+        # a second actor forward (TD3Loss.actor_loss keeps no intermediate output); the fused
+        # TD3Update step shares one
+        actor_in = tensordict.select(*self.actor_network.in_keys, strict=False)
+        with self.actor_network_params.to_module(self.actor_network, preserve_module_state=False):
+            x = self.actor_network(actor_in).get(self.preactivation_key)
+        penalty = self._reduce_loss(
+            x.pow(2).sum(-1), tensordict=tensordict, weights=self._maybe_get_priority_weight(tensordict)
+        )
+        metadata["preactivation_penalty"] = penalty.detach()
+        return loss_actor + self.preactivation_coef * penalty, metadata
 
     @dispatch
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:

@@ -466,7 +466,13 @@ class TD3Update:
             for key, value in group.items()
             if key != "params"
         )
-        values = (loss.policy_noise, loss.noise_clip, loss.value_estimator.gamma, self.target_updater.eps)
+        values = (
+            loss.policy_noise,
+            loss.noise_clip,
+            loss.value_estimator.gamma,
+            self.target_updater.eps,
+            getattr(loss, "preactivation_coef", 0.0),
+        )
         return (*map(constant, values), self.actor_max_grad_norm, self.nstep_weight, groups)
 
     def _graph(self, update_actor: bool) -> CudaGraphModule:
@@ -624,17 +630,28 @@ class TD3Update:
         loss = self.loss
         with self._autocast():
             if self.implementation == "loss":
-                loss_a, _ = loss.actor_loss(batch)
+                loss_a, info = loss.actor_loss(batch)
             else:
-                pi = self._action(self._actor, self._actor_input(batch))
+                # tanh_map as in _action, keeping the pre-tanh output for SAILLoss's penalty
+                x = _run(self._actor, self._actor_input(batch))
+                pi = tanh_map(self._tanh, x, *self._tanh_bounds)
                 q_pi = _run(self._critic_first, self._critic_input(batch, pi)).squeeze(-1)
                 loss_a = reduce_loss(loss, -q_pi, batch)
+                coef = getattr(loss, "preactivation_coef", 0.0)  # SAILLoss's; TD3Loss has none
+                if coef:
+                    penalty = reduce_loss(loss, x.pow(2).sum(-1), batch)
+                    loss_a = loss_a + coef * penalty
         loss_a.backward()
         if self.actor_max_grad_norm is not None:
             torch.nn.utils.clip_grad_norm_(self._actor_params, self.actor_max_grad_norm, foreach=True)
         self.actor_optimizer.step()
         self.actor_optimizer.zero_grad(set_to_none=True)
-        return {"loss_actor": loss_a.detach()}
+        metrics = {"loss_actor": loss_a.detach()}
+        if getattr(loss, "preactivation_coef", 0.0):
+            metrics["preactivation_penalty"] = (
+                info["preactivation_penalty"] if self.implementation == "loss" else penalty.detach()
+            )
+        return metrics
 
     def update_targets(self) -> None:
         """The Polyak step of the target networks (``target_updater.step()``)."""
