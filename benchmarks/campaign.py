@@ -13,7 +13,9 @@ cell: seed 0 of every cell first, then the other seeds, then the 1M-frame runs, 
 teacher-quality and teacher-rule sweeps. ``--stages precision`` (never a default) pairs
 ``optim.precision=fp32`` and ``bf16`` on Hopper-v4, 100k frames, seeds 0-2; it needs bf16
 hardware (AVX-512 or AMX, or a GPU with ``--overrides device=cuda``). ``--stages weak`` runs the
-defaults with the weak teachers, ``--stages centred`` SAIL with its reward centred at D = 1/2
+defaults with the weak teachers, ``--stages preact`` SAIL with the actor's pre-tanh penalty
+(``optim.actor_preactivation_coef=0.001``; teacher labels ``<teacher>-preact``) on the weak and the
+paper's teachers, ``--stages centred`` SAIL with its reward centred at D = 1/2
 (``algo.reward.shift=-log 2``; teacher labels ``<teacher>-centred``), and ``--stages logit`` SAIL with
 D's logit (``algo.reward.kind=airl``; ``<teacher>-logit``) on Swimmer and HalfCheetah, none a default.
 ``--jobs`` runs go at once; rerunning the same command after an interruption continues where it stopped.
@@ -64,12 +66,17 @@ WEAK_TEACHERS = {
 }
 # -log(1 - D) - log 2: SAIL's reward minus its value at D = 1/2, so negative on the rows D calls the agent's
 CENTRED = (f"algo.reward.shift={-math.log(2)}",)
+# rlkit's pre-tanh penalty on the actor: keeps its tanh out of the saturation a stalled run sits in
+PREACT = ("optim.actor_preactivation_coef=0.001",)
+# the stages that run SAIL on the weak teachers (a teacher label "<weak teacher>[-<stage>]")
+WEAK_STAGES = ("weak", "preact", "centred", "logit")
 # D's logit log D - log(1 - D), negative on agent rows: it can pay a fall, so only where no fall ends an episode
 LOGIT = ("algo.reward.kind=airl",)
 NO_EARLY_TERMINATION = ("Swimmer-v4", "HalfCheetah-v4")
 WEAK_TEACHERS_DIR = REPO / "benchmarks" / "results" / "campaign" / "teachers"
 # What a run's report needs from its logs: the evaluation curve, then the diagnostics that explain
-# it (D's accuracy and rewards on both sides, Q, the threshold C and promotions, alpha, speed).
+# it (D's accuracy and rewards on both sides, Q, the actor's saturation, the threshold C and promotions,
+# alpha, speed).
 DIAGNOSTICS = (
     "eval/return",
     "train/dense_return",
@@ -92,6 +99,9 @@ DIAGNOSTICS = (
     "sail/loss_qvalue",
     "sail/d_reward_mean",
     "sail/env_reward_mean",
+    "sail/preactivation_penalty",
+    "actor/saturation",
+    "actor/preactivation",
     "time/fps",
 )
 COMMON = (
@@ -167,6 +177,15 @@ def plan() -> list[Cell]:
         for seed in (0, 1, 2)
         for precision in ("fp32", "bf16")
     ]
+    # The actor's pre-tanh penalty (the weak-teacher study's candidate remedy; rlkit's, not the
+    # authors'), its own rows ("<teacher>-preact") beside the defaults': the weak teachers and the
+    # paper's on every env, seed by seed. Not in the default stages, as it comes after the main table.
+    for seed in (0, 1, 2):
+        cells += [
+            Cell("preact", env, "sail", seed, 300_000, f"{label}-preact", PREACT)
+            for env, label in WEAK_TEACHERS.items()
+        ]
+        cells += [Cell("preact", env, "sail", seed, 300_000, "paper-preact", PREACT) for env in ENVS]
     # SAIL's reward centred at D = 1/2 (the weak-teacher study's candidate remedy, ours), its own
     # rows ("<teacher>-centred") beside the defaults': the weak teachers and the paper's on every
     # env, seed by seed. Not in the default stages, as it comes after the main table.
@@ -195,7 +214,7 @@ def device_of(overrides: list[str]) -> str:
 def teacher_path(
     cell: Cell, teachers_dir: Path | None, random_teacher: Path | None, weak_dir: Path = WEAK_TEACHERS_DIR
 ) -> Path | None:
-    if cell.stage in ("weak", "centred", "logit") and not cell.teacher.startswith("paper"):
+    if cell.stage in WEAK_STAGES and not cell.teacher.startswith("paper"):
         return weak_dir / cell.teacher.removesuffix(f"-{cell.stage}")
     if cell.teacher.startswith("paper"):
         return teachers_dir / PAPER_TEACHERS[cell.env]
@@ -277,10 +296,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--stages",
         nargs="+",
-        choices=["main", "scale", "teachers", "buffer", "weak", "precision", "centred", "logit"],
+        choices=["main", "scale", "teachers", "buffer", "weak", "precision", "preact", "centred", "logit"],
         default=["main", "scale", "teachers", "buffer"],
-        help="weak (SAIL with weak teachers), precision (fp32 against bf16: it needs bf16 hardware) and "
-        "centred (SAIL with its reward centred at D = 1/2) and logit (SAIL with D's logit) are never defaults",
+        help="weak (SAIL with weak teachers), precision (fp32 against bf16: it needs bf16 hardware), preact "
+        "(SAIL with the actor's pre-tanh penalty), centred (SAIL with its reward centred at D = 1/2) and logit "
+        "(SAIL with D's logit) are never defaults",
     )
     parser.add_argument(
         "--overrides",
@@ -307,7 +327,7 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"--teachers-dir {args.teachers_dir} lacks {', '.join(missing)}")
     teachers_dir = None if args.teachers_dir is None else args.teachers_dir.resolve()
     weak_dir = args.weak_teachers_dir.resolve()
-    weak = {c.teacher.removesuffix(f"-{c.stage}") for c in cells if c.stage in ("weak", "centred", "logit")}
+    weak = {c.teacher.removesuffix(f"-{c.stage}") for c in cells if c.stage in WEAK_STAGES}
     weak -= {"paper"}
     missing = sorted(label for label in weak if not (weak_dir / label).is_dir())
     if missing:

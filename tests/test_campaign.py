@@ -29,7 +29,17 @@ def test_plan_fills_the_table_seed_0_first():
     assert counts["td3_delayed", 0] == counts["dac_published", 0] == 4  # one seed per env
     assert len(main) == 44 and {c.frames for c in main} == {300_000}
     # the main table precedes the 1M-frame runs, which precede the two sweeps (seed 0 of both first)
-    order = {"main": 0, "scale": 1, "teachers": 2, "buffer": 2, "weak": 3, "precision": 4, "centred": 5, "logit": 6}
+    order = {
+        "main": 0,
+        "scale": 1,
+        "teachers": 2,
+        "buffer": 2,
+        "weak": 3,
+        "precision": 4,
+        "preact": 5,
+        "centred": 6,
+        "logit": 7,
+    }
     stages = [order[c.stage] for c in cells]
     assert stages == sorted(stages)
     sweeps = [c.seed for c in cells if order[c.stage] == 2]
@@ -46,6 +56,20 @@ def test_plan_fills_the_table_seed_0_first():
     assert weak == [
         (env, "sail", seed, 300_000, label) for seed in (0, 1, 2) for env, label in campaign.WEAK_TEACHERS.items()
     ]
+    # the actor's pre-tanh penalty: each weak teacher, then the paper's on every env, seed by seed
+    preact = [(c.env, c.seed, c.teacher) for c in cells if c.stage == "preact"]
+    assert preact == [
+        cell
+        for seed in (0, 1, 2)
+        for cell in (
+            ("Swimmer-v4", seed, "weak_swimmer-preact"),
+            ("HalfCheetah-v4", seed, "early_halfcheetah-preact"),
+            *((env, seed, "paper-preact") for env in campaign.ENVS),
+        )
+    ]
+    assert {(c.method, c.frames, c.overrides) for c in cells if c.stage == "preact"} == {
+        ("sail", 300_000, ("optim.actor_preactivation_coef=0.001",))
+    }
     # SAIL's reward centred at D = 1/2: each weak teacher, then the paper's on every env, seed by seed,
     # each its own "-centred" label
     centred = [(c.env, c.seed, c.teacher) for c in cells if c.stage == "centred"]
@@ -200,9 +224,9 @@ def test_matrix_records_every_stage_and_label(tmp_path, monkeypatch):
         campaign.subprocess, "run", lambda cmd, **kw: launched.append(cmd) or argparse.Namespace(returncode=0)
     )
     assert campaign.main(["--teachers-dir", str(teachers), "--out", str(tmp_path / "out"), "--jobs", "1"]) == 0
-    never = ("weak", "precision", "centred", "logit")
+    never = ("weak", "precision", "preact", "centred", "logit")
     default = [c for c in campaign.plan() if c.teacher != "random" and c.stage not in never]
-    assert len(launched) == len(default)  # not the weak, precision, centred and logit stages: never defaults
+    assert len(launched) == len(default)  # not the weak, precision and remedy stages: never defaults
     main = json.loads((tmp_path / "out" / "main" / "matrix.json").read_text())
     assert main["teachers"] == {"paper": str(teachers)}  # the authors' folder: one file per env
     assert {(s["envs"][0], s["methods"][0], s["seeds"][0]) for s in main["sweeps"]} == {
@@ -249,6 +273,7 @@ def test_weak_stage_runs_each_weak_teacher_and_refuses_a_missing_one(tmp_path, c
 @pytest.mark.parametrize(
     "stage, override, runs, third",
     [
+        ("preact", "optim.actor_preactivation_coef=0.001", 18, "Hopper-v4"),
         ("centred", "algo.reward.shift=-0.6931471805599453", 18, "Hopper-v4"),
         ("logit", "algo.reward.kind=airl", 12, "Swimmer-v4"),
     ],

@@ -157,7 +157,8 @@ class TD3Update:
       TanhModule)``, a critic ``TensorDictModule(MLP)`` (its ``in_keys`` concatenated in
       order, as :class:`~torchrl.modules.MLP` does), target networks for both, a TD(0)
       value estimator and a :class:`~torchrl.objectives.SoftUpdate`; anything else is
-      refused at construction with the reason.
+      refused at construction with the reason. A :class:`~torchrl_sail.SAILLoss`'s pre-tanh
+      penalty (``preactivation_coef``) reuses the actor output the objective computes.
     - ``"loss"``: the reference, the loss's own ``value_loss``/``actor_loss`` and
       ``target_updater.step()``, as TorchRL's TD3 script runs them. Works for any network.
 
@@ -210,7 +211,8 @@ class TD3Update:
             optimizers built with ``capturable=True``. A graph replays the step with the
             values it was captured with, so the graphs are captured again whenever the binding
             or a value the step reads as a Python number changes (the optimizers' param groups,
-            e.g. a new learning rate; ``policy_noise``, ``noise_clip``, ``actor_max_grad_norm``).
+            e.g. a new learning rate; ``policy_noise``, ``noise_clip``, ``actor_max_grad_norm``,
+            the loss's ``preactivation_coef``).
             Defaults to ``False``.
         cudagraph_warmup (int, optional): eager steps before a graph is captured (the
             optimizers' states are created there). Defaults to ``3``.
@@ -518,8 +520,9 @@ class TD3Update:
             update_actor (bool): also run the actor step and the target update.
 
         Returns:
-            ``{"loss_qvalue", "q_mean"}`` and, on actor steps, ``"loss_actor"``: detached
-            scalar tensors (no host synchronisation).
+            ``{"loss_qvalue", "q_mean"}`` and, on actor steps, ``"loss_actor"`` (and
+            ``"preactivation_penalty"`` with a :class:`~torchrl_sail.SAILLoss` whose
+            ``preactivation_coef`` is > 0): detached scalar tensors (no host synchronisation).
         """
         self._ensure_bound()  # once per step; the three parts below trust it
         if self.cudagraphs:
