@@ -13,7 +13,8 @@ states, as ``checkpoint_rewards.py`` does). Per group, on the rows' states:
 - ``pi |a| >= 0.99`` and ``pi |x|``: the same share for the actor's own action ``pi(s)``, and the
   mean ``|x|`` of its pre-tanh output ``x`` (from ``|x| = 2.65`` on, ``|tanh(x)| >= 0.99``);
 - ``|dQ/da|`` and ``|dQ/dx|``: the first critic's mean slope in the action at ``pi(s)``, and the
-  slope the actor's update follows, ``dQ/da (1 - tanh(x)^2)``: near 0, the actor no longer moves;
+  slope the actor's update follows, ``dQ/da (1 - tanh(x)^2) (high - low) / 2``: near 0, the
+  actor no longer moves;
 - ``Q(s, pi(s))`` and ``Q(s, centre)``: the first critic's mean value of the actor's action and of
   the action box's centre (the zero action for symmetric bounds).
 

@@ -229,7 +229,8 @@ def main(cfg):  # noqa: F821
                             )
                         )
                 metrics.update({f"sail/{key}": value for key, value in last.items()})
-                metrics.update(actor_saturation(cfg, actor, batch))
+                if alpha < 1:  # the batch holds agent rows
+                    metrics.update(actor_saturation(cfg, actor, batch))
             num_d_steps = crossings(d.every_frames, warmup, before, frames) * d.steps if uses_discriminator else 0
             if num_d_steps:
                 with timeit("sample"):

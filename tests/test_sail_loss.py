@@ -424,7 +424,7 @@ class TestSAILLoss:
         other.load_state_dict(loss.state_dict())
         assert float(other.alpha) == 0.75
 
-    @pytest.mark.parametrize("bad", [-0.1, float("inf"), float("nan"), "1e-3"])
+    @pytest.mark.parametrize("bad", [-0.1, float("inf"), float("nan"), "1e-3", True])
     def test_preactivation_coef_out_of_range_at_construction(self, bad):
         actor, critic = make_nets()
         with pytest.raises(ValueError, match="preactivation_coef must be a finite number >= 0"):
@@ -436,6 +436,13 @@ class TestSAILLoss:
         with pytest.raises(ValueError, match="without one"):
             SAILLoss(actor, critic, action_spec=SPEC, preactivation_coef=1e-3)
         SAILLoss(actor, critic, action_spec=SPEC)  # no penalty: any actor
+        # a TanhModule that writes back into its input key leaves no pre-tanh output to read
+        overwriting = TensorDictSequential(
+            TensorDictModule(torch.nn.Linear(OBS, ACT), ["observation"], ["action"]),
+            TanhModule(["action"], spec=SPEC),
+        )
+        with pytest.raises(ValueError, match="which the module overwrites with the action"):
+            SAILLoss(overwriting, critic, action_spec=SPEC, preactivation_coef=1e-3)
 
     def test_loss_function_defaults_to_l2(self):
         actor, critic = make_nets()

@@ -77,8 +77,9 @@ class SAILLoss(TD3Loss):
             :class:`~torchrl.modules.TanhModule`), reduced over rows as ``-Q`` is (rlkit's
             ``policy_pre_activation_weight``). It keeps the tanh out of saturation, where the
             actor's gradient ``dQ/da (1 - tanh(x)^2)`` vanishes and the actor stops moving.
-            ``> 0`` needs a ``TensorDictSequential`` actor with a ``TanhModule``. Defaults to ``0.0``
-            (TD3's objective).
+            ``> 0`` needs a ``TensorDictSequential`` actor with a ``TanhModule`` that writes
+            the action under another key than its input. Set at construction. Defaults to
+            ``0.0`` (TD3's objective).
         **kwargs: the other :class:`~torchrl.objectives.TD3Loss` keyword arguments
             (``action_spec`` or ``bounds``, ``num_qvalue_nets``, ``policy_noise``,
             ``noise_clip``, ``delay_actor``, ``delay_qvalue``, ``separate_losses``,
@@ -191,7 +192,11 @@ class SAILLoss(TD3Loss):
             raise ValueError(f"alpha must be in [0, 1] (the teacher share), got {alpha}.")
         if mixing not in ("batch", "weights"):
             raise ValueError(f"mixing must be 'batch' or 'weights', got {mixing!r}.")
-        if not (isinstance(preactivation_coef, (int, float)) and 0.0 <= preactivation_coef < math.inf):
+        if not (
+            isinstance(preactivation_coef, (int, float))
+            and not isinstance(preactivation_coef, bool)
+            and 0.0 <= preactivation_coef < math.inf
+        ):
             raise ValueError(f"preactivation_coef must be a finite number >= 0, got {preactivation_coef!r}.")
         self.preactivation_key = None
         if preactivation_coef > 0:
@@ -201,6 +206,11 @@ class SAILLoss(TD3Loss):
                 raise ValueError(
                     "preactivation_coef > 0 penalises the pre-tanh output of the actor's TanhModule; "
                     f"this actor is a {type(actor_network).__name__} without one."
+                )
+            if tanh[-1].in_keys[0] in tanh[-1].out_keys:
+                raise ValueError(
+                    f"preactivation_coef > 0 reads the pre-tanh output at the TanhModule's in_key "
+                    f"{tanh[-1].in_keys[0]!r}, which the module overwrites with the action: give it another out_key."
                 )
             self.preactivation_key = tanh[-1].in_keys[0]
         self.preactivation_coef = float(preactivation_coef)

@@ -211,8 +211,7 @@ class TD3Update:
             optimizers built with ``capturable=True``. A graph replays the step with the
             values it was captured with, so the graphs are captured again whenever the binding
             or a value the step reads as a Python number changes (the optimizers' param groups,
-            e.g. a new learning rate; ``policy_noise``, ``noise_clip``, ``actor_max_grad_norm``,
-            the loss's ``preactivation_coef``).
+            e.g. a new learning rate; ``policy_noise``, ``noise_clip``, ``actor_max_grad_norm``).
             Defaults to ``False``.
         cudagraph_warmup (int, optional): eager steps before a graph is captured (the
             optimizers' states are created there). Defaults to ``3``.
