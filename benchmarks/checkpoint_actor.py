@@ -36,7 +36,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "examples"))
 sys.path.insert(0, str(REPO / "benchmarks"))
 
-from checkpoint_rewards import groups  # noqa: E402
+import checkpoint_rewards  # noqa: E402
 from evaluate import load_run  # noqa: E402
 from utils import (  # noqa: E402
     FilledRows,
@@ -61,13 +61,7 @@ HEADER = (
 
 
 def parse_args(argv=None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("run_dir", type=Path)
-    parser.add_argument("--recent", type=int, default=20_000, help="the agent's latest rows, as their own group")
-    args = parser.parse_args(argv)
-    if args.recent < 1:
-        parser.error(f"--recent must be >= 1, got {args.recent}")
-    return args
+    return checkpoint_rewards.parse_args(argv, __doc__)
 
 
 def load(run_dir: Path):
@@ -87,10 +81,7 @@ def load(run_dir: Path):
     Checkpoint(loss=loss, replay=FilledRows(replay), teacher=teacher).load(
         checkpoint_dir(run_dir), components=["loss", "replay", "teacher"], map_location="cpu"
     )
-    agent = replay.storage.get(torch.arange(len(replay)))
-    if len(replay) == replay.storage.max_size:  # wrapped: the oldest row is at the writer's cursor
-        agent = agent.roll(-int(replay.writer._cursor), 0)
-    return cfg, run, loss, teacher.storage.get(teacher.writer.stored_rows()), agent
+    return cfg, run, loss, teacher.storage.get(teacher.writer.stored_rows()), checkpoint_rewards.write_order(replay)
 
 
 def summarize(loss, rows: TensorDictBase) -> dict[str, float]:
@@ -151,7 +142,8 @@ def main(argv=None) -> dict[str, dict[str, float]]:
     args = parse_args(argv)
     torch.set_num_threads(1)
     cfg, run, loss, teacher_rows, agent = load(args.run_dir)
-    stats = {name: summarize(loss, rows) for name, rows in groups(cfg, teacher_rows, agent, args.recent).items()}
+    named = checkpoint_rewards.groups(cfg, teacher_rows, agent, args.recent)
+    stats = {name: summarize(loss, rows) for name, rows in named.items()}
     print(f"{args.run_dir}: checkpoint at {run['frames']} frames\n")
     print(table(stats))
     return stats

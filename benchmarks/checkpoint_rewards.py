@@ -39,8 +39,9 @@ from torchrl_sail.runs import checkpoint_dir  # noqa: E402
 HEADER = "| rows | count | D | logit | D reward | D reward std |\n|---|---|---|---|---|---|"
 
 
-def parse_args(argv=None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def parse_args(argv=None, doc: str = __doc__) -> argparse.Namespace:
+    """``RUN_DIR [--recent N]``, the arguments of this tool and of ``checkpoint_actor.py`` (``doc``: its docstring)."""
+    parser = argparse.ArgumentParser(description=doc.splitlines()[0])
     parser.add_argument("run_dir", type=Path)
     parser.add_argument("--recent", type=int, default=20_000, help="the agent's latest rows, as their own group")
     args = parser.parse_args(argv)
@@ -70,10 +71,15 @@ def load(run_dir: Path):
         checkpoint_dir(run_dir), components=["discriminator", "replay", "teacher"], map_location="cpu"
     )
     reward = make_reward(cfg, discriminator.eval(), keep_logit=True)
+    return cfg, run, reward, teacher, write_order(replay)
+
+
+def write_order(replay) -> TensorDictBase:
+    """A replay buffer's stored rows, oldest first (also once its ring has wrapped)."""
     agent = replay.storage.get(torch.arange(len(replay)))
     if len(replay) == replay.storage.max_size:  # wrapped: the oldest row is at the writer's cursor
         agent = agent.roll(-int(replay.writer._cursor), 0)
-    return cfg, run, reward, teacher, agent
+    return agent
 
 
 def groups(cfg, teacher: TensorDictBase, agent: TensorDictBase, recent: int) -> dict[str, TensorDictBase]:

@@ -630,6 +630,7 @@ class TD3Update:
 
     def _actor_step(self, batch: TensorDictBase) -> dict[str, torch.Tensor]:
         loss = self.loss
+        coef = getattr(loss, "preactivation_coef", 0.0)  # SAILLoss's pre-tanh penalty; TD3Loss has none
         with self._autocast():
             if self.implementation == "loss":
                 loss_a, info = loss.actor_loss(batch)
@@ -639,7 +640,6 @@ class TD3Update:
                 pi = tanh_map(self._tanh, x, *self._tanh_bounds)
                 q_pi = _run(self._critic_first, self._critic_input(batch, pi)).squeeze(-1)
                 loss_a = reduce_loss(loss, -q_pi, batch)
-                coef = getattr(loss, "preactivation_coef", 0.0)  # SAILLoss's; TD3Loss has none
                 if coef:
                     penalty = reduce_loss(loss, x.pow(2).sum(-1), batch)
                     loss_a = loss_a + coef * penalty
@@ -649,7 +649,7 @@ class TD3Update:
         self.actor_optimizer.step()
         self.actor_optimizer.zero_grad(set_to_none=True)
         metrics = {"loss_actor": loss_a.detach()}
-        if getattr(loss, "preactivation_coef", 0.0):
+        if coef:
             metrics["preactivation_penalty"] = (
                 info["preactivation_penalty"] if self.implementation == "loss" else penalty.detach()
             )
