@@ -177,31 +177,21 @@ def plan() -> list[Cell]:
         for seed in (0, 1, 2)
         for precision in ("fp32", "bf16")
     ]
-    # The actor's pre-tanh penalty (the weak-teacher study's candidate remedy; rlkit's, not the
-    # authors'), its own rows ("<teacher>-preact") beside the defaults': the weak teachers and the
-    # paper's on every env, seed by seed. Not in the default stages, as it comes after the main table.
-    for seed in (0, 1, 2):
-        cells += [
-            Cell("preact", env, "sail", seed, 300_000, f"{label}-preact", PREACT)
-            for env, label in WEAK_TEACHERS.items()
-        ]
-        cells += [Cell("preact", env, "sail", seed, 300_000, "paper-preact", PREACT) for env in ENVS]
-    # SAIL's reward centred at D = 1/2 (the weak-teacher study's candidate remedy, ours), its own
-    # rows ("<teacher>-centred") beside the defaults': the weak teachers and the paper's on every
-    # env, seed by seed. Not in the default stages, as it comes after the main table.
-    for seed in (0, 1, 2):
-        cells += [
-            Cell("centred", env, "sail", seed, 300_000, f"{label}-centred", CENTRED)
-            for env, label in WEAK_TEACHERS.items()
-        ]
-        cells += [Cell("centred", env, "sail", seed, 300_000, "paper-centred", CENTRED) for env in ENVS]
-    # D's logit (the weak-teacher advice where episodes end only at the time limit; ours): the weak
-    # teachers and the paper's on Swimmer and HalfCheetah, seed by seed ("<teacher>-logit")
-    for seed in (0, 1, 2):
-        cells += [
-            Cell("logit", env, "sail", seed, 300_000, f"{label}-logit", LOGIT) for env, label in WEAK_TEACHERS.items()
-        ]
-        cells += [Cell("logit", env, "sail", seed, 300_000, "paper-logit", LOGIT) for env in NO_EARLY_TERMINATION]
+    # The weak-teacher study's candidate remedies, each its own rows ("<teacher>-<stage>") beside the
+    # defaults': the weak teachers, then the paper's, seed by seed. Not in the default stages, as they
+    # come after the main table. preact: the actor's pre-tanh penalty (rlkit's); centred: SAIL's reward
+    # centred at D = 1/2 (ours); logit: D's logit, only where no fall ends an episode (ours).
+    for stage, overrides, paper_envs in (
+        ("preact", PREACT, ENVS),
+        ("centred", CENTRED, ENVS),
+        ("logit", LOGIT, NO_EARLY_TERMINATION),
+    ):
+        for seed in (0, 1, 2):
+            cells += [
+                Cell(stage, env, "sail", seed, 300_000, f"{label}-{stage}", overrides)
+                for env, label in WEAK_TEACHERS.items()
+            ]
+            cells += [Cell(stage, env, "sail", seed, 300_000, f"paper-{stage}", overrides) for env in paper_envs]
     return cells
 
 
