@@ -315,8 +315,8 @@ def actor_saturation(cfg: DictConfig, actor, batch) -> dict:
     x = body(batch.select(*body.in_keys).copy())[body.out_keys[0]].abs()
     # the agent's rows by weight, not by index: no host sync (a batch without one gives 0, finite for the
     # divergence check; sail_td3.py calls this only when alpha < 1)
-    agent = (~batch["is_teacher"]).reshape(-1, 1).to(x.dtype) if "is_teacher" in batch.keys() else torch.ones_like(x)
-    count = (agent * torch.ones_like(x)).sum().clamp_min(1)
+    agent = (~batch["is_teacher"]).reshape(-1, 1).to(x.dtype) if "is_teacher" in batch.keys() else x.new_ones(len(x), 1)
+    count = (agent.sum() * x.shape[-1]).clamp_min(1)
     return {
         "actor/saturation": ((x >= SATURATED_PREACTIVATION).to(x.dtype) * agent).sum() / count,
         "actor/preactivation": (x * agent).sum() / count,

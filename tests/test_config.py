@@ -349,6 +349,9 @@ def test_actor_saturation_on_the_agent_rows():
     assert out["actor/saturation"].item() == pytest.approx(1 / 4)  # agent x: 0.5, 2.0, 3.0, 0.0
     assert out["actor/preactivation"].item() == pytest.approx((0.5 + 2.0 + 3.0 + 0.0) / 4)
     assert all(v.item() == 0.0 for v in actor_saturation(cfg, actor, batch[4:]).values())  # no agent row: finite
+    every = actor_saturation(cfg, actor, batch.exclude("is_teacher"))  # no teacher flag: every row is the agent's
+    assert every["actor/saturation"].item() == pytest.approx(3 / 6)
+    assert every["actor/preactivation"].item() == pytest.approx((0.5 + 2.0 + 3.0 + 0.0 + 100.0 + 100.0) / 6)
     assert actor_saturation(make("algo=sail_sac"), actor, batch) == {}  # SAC's actor has no pre-tanh action
 
 
