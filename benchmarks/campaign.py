@@ -13,7 +13,8 @@ cell: seed 0 of every cell first, then the other seeds, then the 1M-frame runs, 
 teacher-quality and teacher-rule sweeps. ``--stages precision`` (never a default) pairs
 ``optim.precision=fp32`` and ``bf16`` on Hopper-v4, 100k frames, seeds 0-2; it needs bf16
 hardware (AVX-512 or AMX, or a GPU with ``--overrides device=cuda``). ``--stages weak`` runs the
-defaults with the weak teachers, ``--stages preact`` SAIL with the actor's pre-tanh penalty
+defaults with the weak teachers (the near-random Hopper one's seed 2: its seeds 0 and 1 are the
+teachers stage's), ``--stages preact`` SAIL with the actor's pre-tanh penalty
 (``optim.actor_preactivation_coef=0.001``; teacher labels ``<teacher>-preact``) on the weak and the
 paper's teachers, ``--stages centred`` SAIL with its reward centred at D = 1/2
 (``algo.reward.shift=-log 2``; teacher labels ``<teacher>-centred``), and ``--stages logit`` SAIL with
@@ -58,8 +59,8 @@ PAPER_TEACHERS = {
 }
 ENVS = list(PAPER_TEACHERS)
 # The weak-teacher study's teachers (make_teacher.py; benchmarks/README.md has how each was made),
-# folders under --weak-teachers-dir, one per env, each its own label. Hopper's near-random teacher
-# is the teachers stage's "random" cells.
+# folders under --weak-teachers-dir, one per env, each its own label. The third, Hopper's near-random
+# teacher, is --random-teacher (label "random", as in the teachers stage).
 WEAK_TEACHERS = {
     "Swimmer-v4": "weak_swimmer",
     "HalfCheetah-v4": "early_halfcheetah",
@@ -156,12 +157,14 @@ def plan() -> list[Cell]:
             for rule in ("fifo", "union")
         ]
     # The defaults with weak teachers, 3 seeds (the weak-teacher study's "before" rows): not in the
-    # default stages, as they come after the main table
+    # default stages, as they come after the main table. The near-random Hopper teacher's seeds 0 and 1
+    # are the teachers stage's "random" cells; its seed 2 joins them under the same label.
     cells += [
         Cell("weak", env, "sail", seed, 300_000, teacher=label)
         for seed in (0, 1, 2)
         for env, label in WEAK_TEACHERS.items()
     ]
+    cells.append(Cell("weak", "Hopper-v4", "sail", 2, 300_000, teacher="random"))
     # fp32 against bf16 (optim.precision), seed by seed, so each pair runs side by side: not in the
     # default stages, as bf16 needs bf16 hardware (--stages precision, on AVX-512/AMX or a GPU)
     cells += [
@@ -189,7 +192,8 @@ def plan() -> list[Cell]:
         for seed in (0, 1, 2):
             cells += [
                 Cell(stage, env, "sail", seed, 300_000, f"{label}-{stage}", overrides)
-                for env, label in WEAK_TEACHERS.items()
+                for env, label in (*WEAK_TEACHERS.items(), ("Hopper-v4", "random"))
+                if env in paper_envs
             ]
             cells += [Cell(stage, env, "sail", seed, 300_000, f"paper-{stage}", overrides) for env in paper_envs]
     return cells
@@ -204,13 +208,19 @@ def device_of(overrides: list[str]) -> str:
 def teacher_path(
     cell: Cell, teachers_dir: Path | None, random_teacher: Path | None, weak_dir: Path = WEAK_TEACHERS_DIR
 ) -> Path | None:
-    if cell.stage in WEAK_STAGES and not cell.teacher.startswith("paper"):
-        return weak_dir / cell.teacher.removesuffix(f"-{cell.stage}")
-    if cell.teacher.startswith("paper"):
+    label = base_label(cell)
+    if label.startswith("paper"):
         return teachers_dir / PAPER_TEACHERS[cell.env]
-    if cell.teacher == "random":
+    if label == "random":
         return random_teacher
+    if cell.stage in WEAK_STAGES:
+        return weak_dir / label
     return None  # "shipped": the teacher shipped for the env (examples/teachers)
+
+
+def base_label(cell: Cell) -> str:
+    """The cell's teacher label without its remedy stage's suffix: ``random-preact`` is ``random``."""
+    return cell.teacher.removesuffix(f"-{cell.stage}")
 
 
 def command(
@@ -274,7 +284,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--random-teacher",
         type=Path,
-        help="a near-random Hopper-v4 teacher (make_teachers.py); without it the 'random' cells are skipped",
+        help="a near-random Hopper-v4 teacher (examples/make_teacher.py); without it every stage skips its "
+        "'random' cells",
     )
     parser.add_argument(
         "--weak-teachers-dir",
@@ -308,7 +319,7 @@ def main(argv: list[str] | None = None) -> int:
         for target in collect(out, args.collect):
             print(target)
         return 0
-    cells = [c for c in plan() if c.stage in args.stages and (c.teacher != "random" or args.random_teacher)]
+    cells = [c for c in plan() if c.stage in args.stages and (base_label(c) != "random" or args.random_teacher)]
     if any(c.teacher.startswith("paper") for c in cells):  # --stages weak alone needs no paper teacher
         if args.teachers_dir is None:
             parser.error(f"--teachers-dir is required by --stages {' '.join(args.stages)}")
@@ -317,8 +328,7 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"--teachers-dir {args.teachers_dir} lacks {', '.join(missing)}")
     teachers_dir = None if args.teachers_dir is None else args.teachers_dir.resolve()
     weak_dir = args.weak_teachers_dir.resolve()
-    weak = {c.teacher.removesuffix(f"-{c.stage}") for c in cells if c.stage in WEAK_STAGES}
-    weak -= {"paper"}
+    weak = {base_label(c) for c in cells if c.stage in WEAK_STAGES} - {"paper", "random"}
     missing = sorted(label for label in weak if not (weak_dir / label).is_dir())
     if missing:
         parser.error(f"--weak-teachers-dir {weak_dir} lacks {', '.join(missing)} (see benchmarks/README.md)")

@@ -51,11 +51,15 @@ def test_plan_fills_the_table_seed_0_first():
     buffer = [c.overrides for c in cells if c.stage == "buffer"]
     assert sorted(buffer) == sorted([("teacher.eviction=fifo",), ("teacher.eviction=union",)] * 2)
     assert len(set(cells)) == len(cells)  # no run twice
-    # SAIL with each weak teacher, 3 seeds, seed by seed
+    # SAIL with each weak teacher, 3 seeds, seed by seed; the near-random Hopper teacher's third seed
+    # beside the teachers stage's two, under its label
     weak = [(c.env, c.method, c.seed, c.frames, c.teacher) for c in cells if c.stage == "weak"]
     assert weak == [
-        (env, "sail", seed, 300_000, label) for seed in (0, 1, 2) for env, label in campaign.WEAK_TEACHERS.items()
+        *((env, "sail", seed, 300_000, label) for seed in (0, 1, 2) for env, label in campaign.WEAK_TEACHERS.items()),
+        ("Hopper-v4", "sail", 2, 300_000, "random"),
     ]
+    teachers_random = {c.seed for c in cells if c.stage == "teachers" and c.teacher == "random"}
+    assert teachers_random | {2} == {0, 1, 2}
     # the actor's pre-tanh penalty: each weak teacher, then the paper's on every env, seed by seed
     preact = [(c.env, c.seed, c.teacher) for c in cells if c.stage == "preact"]
     assert preact == [
@@ -64,6 +68,7 @@ def test_plan_fills_the_table_seed_0_first():
         for cell in (
             ("Swimmer-v4", seed, "weak_swimmer-preact"),
             ("HalfCheetah-v4", seed, "early_halfcheetah-preact"),
+            ("Hopper-v4", seed, "random-preact"),
             *((env, seed, "paper-preact") for env in campaign.ENVS),
         )
     ]
@@ -79,6 +84,7 @@ def test_plan_fills_the_table_seed_0_first():
         for cell in (
             ("Swimmer-v4", seed, "weak_swimmer-centred"),
             ("HalfCheetah-v4", seed, "early_halfcheetah-centred"),
+            ("Hopper-v4", seed, "random-centred"),
             *((env, seed, "paper-centred") for env in campaign.ENVS),
         )
     ]
@@ -254,6 +260,13 @@ def test_weak_stage_runs_each_weak_teacher_and_refuses_a_missing_one(tmp_path, c
         f"hydra.run.dir={tmp_path / 'out' / 'weak' / 'weak_swimmer' / 'Swimmer-v4' / 'sail' / 'seed0'}"
     )
     assert "seed=2" in lines[-1] and "env=HalfCheetah-v4" in lines[-1]
+    # with --random-teacher, the near-random Hopper teacher's seed 2 (its label's folder under the weak stage)
+    random = tmp_path / "random_hopper"
+    assert campaign.main([*args, "--weak-teachers-dir", str(weak), "--random-teacher", str(random)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 7
+    assert f"teacher.path={random} " in lines[-1] and "env=Hopper-v4" in lines[-1] and "seed=2" in lines[-1]
+    assert lines[-1].endswith(f"hydra.run.dir={tmp_path / 'out' / 'weak' / 'random' / 'Hopper-v4' / 'sail' / 'seed2'}")
     (weak / "early_halfcheetah").rmdir()
     with pytest.raises(SystemExit):
         campaign.main([*args, "--weak-teachers-dir", str(weak)])
@@ -306,6 +319,18 @@ def test_reward_stages_give_the_weak_and_the_paper_teachers_and_the_override(
         f"early_halfcheetah-{stage}": str(weak / "early_halfcheetah"),
         f"paper-{stage}": str(teachers),
     }
+    # with --random-teacher, the near-random Hopper teacher too, where a fall may end an episode's reward
+    random = tmp_path / "random_hopper"
+    capsys.readouterr()
+    assert campaign.main([*args, "--random-teacher", str(random), "--dry-run"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    with_random = [line for line in lines if f"teacher.path={random} " in line]
+    assert len(lines) == runs + len(with_random)
+    if stage == "logit":
+        assert not with_random
+    else:
+        assert len(with_random) == 3 and with_random[0] == lines[2]
+        assert lines[2].endswith(f"hydra.run.dir={out / stage / f'random-{stage}' / 'Hopper-v4' / 'sail' / 'seed0'}")
     (weak / "weak_swimmer").rmdir()
     with pytest.raises(SystemExit):
         campaign.main([*args, "--dry-run"])
