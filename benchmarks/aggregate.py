@@ -29,6 +29,11 @@ name (``shipped`` for the env's default teacher). Writes to ``--out``:
   seeds, min-max band), the teacher's return dashed, offline methods (one evaluation each, at
   their headline mean) as dotted lines.
 
+A teacher label ``<base>-<variant>`` whose ``<base>`` is another label (the campaign's buffer,
+precision and remedy stages: ``paper-fifo``, ``random-preact``) is also set beside its base in a
+"Variants beside their base" section of ``results.md``: the variant's headline and the base's, for
+the same env, method and budget.
+
 Runs of one (env, teacher, method) at different budgets (``collector.total_frames``, e.g. the
 campaign's 300k and 1M SAIL runs) are different cells: their method is shown with the budget,
 ``sail (1M)``.
@@ -533,6 +538,30 @@ def rows(groups: dict) -> list[dict]:
     return out
 
 
+def method_name(label: str) -> str:
+    """A method's name without its budget: ``sail (1M)`` -> ``sail``."""
+    return label.partition(" (")[0]
+
+
+def variant_rows(groups: dict) -> list[dict]:
+    """The groups whose teacher label is ``<base>-<variant>`` (a campaign stage's change of one setting:
+    ``paper-fifo``, ``random-preact``) where ``<base>`` is another teacher label, each with the group of
+    ``<base>`` with the same env, method and budget (``base``: None where there is none)."""
+    labels = {teacher for _, teacher, _ in groups}
+    by_budget = {
+        (env, teacher, method_name(method), total_frames(group.runs[0])): group
+        for (env, teacher, method), group in groups.items()
+    }
+    out = []
+    for (env, teacher, method), group in groups.items():
+        base, _, variant = teacher.rpartition("-")
+        if base in labels:
+            key = (env, base, method_name(method), total_frames(group.runs[0]))
+            out.append({"env": env, "teacher": base, "variant": variant, "group": group, "base": by_budget.get(key)})
+    rank = {name: index for index, name in enumerate(sort_methods(g.method for g in groups.values()))}
+    return sorted(out, key=lambda row: (row["env"], row["teacher"], rank[row["group"].method], row["variant"]))
+
+
 # The headline (mean of each run's last 5 evals, over seeds) first after the group's key.
 CSV_COLUMNS = (
     "env",
@@ -628,11 +657,40 @@ def run_details(run: Run) -> str:
     return "\n".join(lines)
 
 
+def variants_markdown(variants: list[dict]) -> list[str]:
+    """The "Variants" section of ``results.md``: each variant's cell beside its base's."""
+    lines = [
+        "## Variants beside their base",
+        "",
+        "A teacher label `<base>-<variant>` is one campaign stage's change of one setting (`paper-fifo`: the "
+        "teacher buffer's rule; `random-preact`: the pre-tanh penalty), run with the teacher of `<base>`. Each "
+        f"is set beside the runs of `<base>` with the same env, method and budget: last-{HEADLINE_EVALS} mean "
+        "± std over seeds, and that mean over the teacher's return.",
+        "",
+        f"| env | teacher (return) | method | variant | last-{HEADLINE_EVALS} mean ± std | vs teacher "
+        f"| base: last-{HEADLINE_EVALS} mean ± std | base: vs teacher |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for row in variants:
+        group, base = row["group"], row["base"]
+        lines.append(
+            f"| {row['env']} | {row['teacher']} ({fmt(group.teacher_return)}) | {group.method} | {row['variant']} "
+            f"| {readme_cell(group)} | {fmt(group.stats()['vs_teacher'], 2)} | {readme_cell(base)} "
+            f"| {fmt(base.stats()['vs_teacher'], 2) if base else '-'} |"
+        )
+    return lines
+
+
 def markdown(
-    table: list[dict], left_out: list[tuple[str, str]], notes: list[str], curves: list[Path], details: list[str] = ()
+    table: list[dict],
+    left_out: list[tuple[str, str]],
+    notes: list[str],
+    curves: list[Path],
+    details: list[str] = (),
+    variants: list[dict] = (),
 ) -> str:
-    """``results.md``: the table, the runs left out, notes on the groups, the curve files, and the
-    per-run ``details`` (:func:`run_details`) if any."""
+    """``results.md``: the table, the variants beside their base (:func:`variant_rows`), the runs left
+    out, notes on the groups, the curve files, and the per-run ``details`` (:func:`run_details`) if any."""
     best, methods = {}, defaultdict(int)  # per (env, teacher): the best headline mean, the number of methods
     for row in table:
         key = (row["env"], row["teacher"])
@@ -667,6 +725,8 @@ def markdown(
             f"{mean}{std}{short} | {ci} | {row['n_seeds']} | {fmt(row['final_mean'])} | "
             f"{fmt(row['best_mean'])} | {fmt(row['vs_teacher'], 2)} | {passed} |"
         )
+    if variants:
+        lines += ["", *variants_markdown(variants)]
     lines += ["", "## Missing or unfinished runs", ""]
     lines += [f"- `{where}`: {why}" for where, why in left_out] or ["None."]
     if notes:
@@ -999,7 +1059,7 @@ def aggregate(
         if per_run
         else []
     )
-    text = markdown(table, left_out, notes, curves, details)
+    text = markdown(table, left_out, notes, curves, details, variant_rows(groups))
     (out / "results.md").write_text(text)
     if readme is not None:
         write_readme(readme, out, groups, readme_teacher)

@@ -661,3 +661,37 @@ def test_readme_section_in_the_papers_format(tmp_path):
         with pytest.raises(ValueError, match="must have the line <!-- RESULTS: START -->, then the line"):
             run_aggregate([campaign], tmp_path / "report", readme=readme)
         assert readme.read_text() == broken  # nothing written
+
+
+def test_variants_set_beside_their_base_of_the_same_env_method_and_budget(tmp_path):
+    # the campaign's stages: the defaults under "paper", one setting changed under "paper-<variant>"
+    root = tmp_path / "campaign"
+    cells = (
+        ("main", "paper", 300_000, [[100.0] * 5, [200.0] * 5]),  # base: 150.0 ± 70.7 over 2 seeds
+        ("scale", "paper", 1_000_000, [[500.0] * 5]),  # "sail (1M)": the base of no 300k variant
+        ("buffer", "paper-fifo", 300_000, [[40.0] * 4 + [90.0], [60.0] * 5]),  # 50.0 and 60.0: 55.0 ± 7.1
+        ("precision", "paper-bf16", 100_000, [[75.0] * 5]),  # no base at 100k
+        ("other", "my-teacher", 300_000, [[10.0] * 5]),  # "my" is no label: not a variant
+    )
+    for stage, label, frames, curves in cells:
+        out = root / stage
+        run_matrix.record_matrix(out, [run_matrix.Teacher(label, tmp_path / "p.npz")], ["sail"], ["Hopper-v4"], [0, 1])
+        for seed, evals in enumerate(curves):
+            write_run(
+                out / label / "Hopper-v4" / "sail" / f"seed{seed}",
+                seed=seed,
+                total_frames=frames,
+                frames=frames,
+                evals=frames_curve(evals),
+            )
+    text, _ = run_aggregate([root], tmp_path / "report")
+    section = text.split("## Variants beside their base")[1].split("## Missing")[0]
+    table = [line for line in section.splitlines() if line.startswith("| Hopper")]
+    assert table == [
+        "| Hopper-v4 | paper (150.0) | sail | bf16 | 75.0 (1 seed) | 0.50 | - | - |",
+        "| Hopper-v4 | paper (150.0) | sail | fifo | 55.0 ± 7.1 (2 seeds) | 0.37 | 150.0 ± 70.7 (2 seeds) | 1.00 |",
+    ]
+    assert "my-teacher" not in section
+    # without a variant label the section is left out
+    text, _ = run_aggregate([root / "main"], tmp_path / "report_main")
+    assert "Variants" not in text
