@@ -44,6 +44,7 @@ AbsorbingAction = Choice("AbsorbingAction", {name: name for name in ("zero", "ra
 Eviction = Choice("Eviction", {name: name for name in ("topk", "union", "fifo")})
 Implementation = Choice("Implementation", {name: name for name in ("fused", "loss")})
 Precision = Choice("Precision", {name: name for name in ("fp32", "bf16")})
+EvaluatedActor = Choice("EvaluatedActor", {name: name for name in ("online", "target")})
 LossFunction = Choice("LossFunction", {name: name for name in ("l1", "l2", "smooth_l1")})
 Activation = Choice("Activation", {name: name for name in ("relu", "tanh", "elu")})
 Backend = Choice("Backend", {name: name for name in ("direct", "process", "ray")})
@@ -346,6 +347,8 @@ class EvaluateConfig:
 
     run_dir: str = MISSING  # a run folder written by a training script (config.yaml + checkpoint/)
     episodes: int = 10  # deterministic episodes, each from a fresh reset of one seeded env
+    # online: the trained actor (what training evaluates); target: its Polyak average (TD3 learners)
+    actor: EvaluatedActor = EvaluatedActor.online
     seed: Optional[int] = None  # null: the run's seed + 20000 (neither its training nor its eval stream)
     video: bool = False  # true: also record the first episode (replayed on a rendering env)
     video_format: VideoFormat = VideoFormat.mp4  # mp4 (needs the `video` extra: imageio-ffmpeg) | gif

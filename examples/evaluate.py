@@ -4,15 +4,16 @@
     MUJOCO_GL=egl python examples/evaluate.py run_dir=outputs/Hopper-v4/sail/seed0 video=true episodes=20
 
 The run's ``config.yaml`` rebuilds its env and actor (any method: ``sail_td3.py``, ``gail.py``,
-``bc.py``), the
-checkpoint's weights are loaded, and ``episodes`` deterministic episodes run on a fresh seed
-(the run's seed + 20000 unless ``seed`` is given). The dense return (what the paper reports),
-the delayed reward r_e (what the learner saw) and the episode length are printed and written
-with their mean, std, min and max to ``<run_dir>/evaluation.json``. ``video=true`` replays the
-first episode on a rendering env (same seed: the same episode) into ``evaluation.mp4`` (or
-``.gif``) beside it. ``export=<dataset id>`` writes the evaluated episodes, with their dense
-rewards, as a local Minari dataset (``pip install -e '.[minari]'``): the trained agent's own
-trajectories, shareable and usable as a teacher (``teacher.path=minari:<dataset id>``).
+``bc.py``), the checkpoint's weights are loaded, and ``episodes`` deterministic episodes run on a
+fresh seed (the run's seed + 20000 unless ``seed`` is given). The dense return (what the paper
+reports), the delayed reward r_e (what the learner saw) and the episode length are printed and
+written with their mean, std, min and max to ``<run_dir>/evaluation.json``. ``actor=target``
+evaluates a TD3 learner's target actor (the Polyak average of its recent weights) instead of the
+actor the run's own evaluations use. ``video=true`` replays the first episode on a rendering env
+(same seed: the same episode) into ``evaluation.mp4`` (or ``.gif``) beside it.
+``export=<dataset id>`` writes the evaluated episodes, with their dense rewards, as a local Minari
+dataset (``pip install -e '.[minari]'``): the trained agent's own trajectories, shareable and
+usable as a teacher (``teacher.path=minari:<dataset id>``).
 """
 
 from __future__ import annotations
@@ -63,11 +64,12 @@ def load_run(run_dir: Path):
     return OmegaConf.merge(defaults, OmegaConf.load(config)), run
 
 
-def load_actor(cfg, env, checkpoint: Path):
+def load_actor(cfg, env, checkpoint: Path, target: bool = False):
     """The run's deterministic actor with the checkpoint's weights (TD3/SAC keep them in the loss).
 
     A PPO actor reads normalised observations: ``env``'s normaliser gets the training statistics the
-    checkpoint holds, frozen.
+    checkpoint holds, frozen. ``target``: a TD3 learner's target actor, the Polyak average of its
+    recent weights, instead of the actor itself.
     """
     if cfg.algo.learner == "ppo":
         actor, _ = make_ppo_models(cfg, env)
@@ -83,6 +85,8 @@ def load_actor(cfg, env, checkpoint: Path):
         actor, critic, _ = make_agent(cfg, env)
         loss = make_losses(cfg, actor, critic, make_discriminator(cfg, env), env.action_spec)[0]
         Checkpoint(loss=loss).load(checkpoint, components=["loss"])  # the actor's parameters live in the loss
+        if target:
+            loss.actor_network_params.data.copy_(loss.target_actor_network_params.data)
     return actor.eval()
 
 
@@ -144,12 +148,17 @@ def main(args):  # noqa: F821
     cfg, run = load_run(run_dir)
     if args.device is not None:
         cfg.device = args.device
+    if args.actor == "target" and cfg.algo.learner != "td3":
+        raise ValueError(
+            f"actor=target: run_dir={run_dir} is algo={cfg.algo.name}, a {cfg.algo.learner} learner without a "
+            f"target actor; only TD3 learners (sail, dac, td3_delayed, ...) keep one"
+        )
     seed = cfg.seed + 20_000 if args.seed is None else args.seed
     out = Path(args.out) if args.out else run_dir / "evaluation.json"
     check_args(args)
     seed_everything(seed)
     env = make_env(cfg, seed)
-    actor = load_actor(cfg, env, checkpoint_dir(run_dir))
+    actor = load_actor(cfg, env, checkpoint_dir(run_dir), target=args.actor == "target")
     episodes = evaluate_episodes(env, actor, args.episodes, cfg.env.max_episode_steps, keep_rollouts=bool(args.export))
 
     result = {
@@ -158,6 +167,7 @@ def main(args):  # noqa: F821
         "algo": cfg.algo.name,
         "run_seed": cfg.seed,
         "checkpoint_frames": run["frames"],
+        "actor": str(args.actor),
         "seed": seed,
         "episodes": args.episodes,
         **{key: stats([e[key] for e in episodes]) for key in ("dense_return", "delayed_reward", "length")},
@@ -191,7 +201,7 @@ def main(args):  # noqa: F821
 
     print(
         f"{cfg.algo.name} on {cfg.env.name} (seed {cfg.seed}), checkpoint at {run['frames']} frames, "
-        f"{args.episodes} deterministic episodes (seed {seed}):"
+        f"{args.episodes} deterministic episodes (seed {seed}) of its {args.actor} actor:"
     )
     for key, label in (
         ("dense_return", "dense return"),

@@ -53,10 +53,53 @@ def test_evaluate_reproduces_the_runs_own_evaluation(trained):
     assert "dense return" in proc.stdout and "delayed reward r_e" in proc.stdout
 
 
+def test_target_actor_has_the_checkpoints_target_weights(trained):
+    import torch
+    from example_runner import saved
+    from tensordict import TensorDict
+
+    sys.path.insert(0, str(REPO / "examples"))
+    from evaluate import load_actor, load_run
+    from utils import make_env
+
+    from torchrl_sail.runs import checkpoint_dir
+
+    cfg, _ = load_run(trained)
+    state = saved(trained, "loss")["loss"]
+    for target, prefix in ((False, "actor_network_params."), (True, "target_actor_network_params.")):
+        actor = load_actor(cfg, make_env(cfg, 0), checkpoint_dir(trained), target=target)
+        weights = TensorDict.from_module(actor).flatten_keys(".")
+        assert len(weights.keys()) == 8  # three linear layers' weights and biases, the action bounds
+        for key, value in weights.items():
+            torch.testing.assert_close(value.data, state[prefix + key], rtol=0, atol=0)
+    # 2000 frames of training (tau = 0.005) leave the target actor behind the actor
+    first_layer = "actor_network_params.module.0.module.0.weight"
+    assert not torch.equal(state[first_layer], state["target_" + first_layer])
+
+
+def test_evaluate_target_actor_and_a_learner_without_one(trained, tmp_path):
+    proc = evaluate(f"run_dir={trained}", "episodes=1", "actor=target", f"out={tmp_path / 'target.json'}")
+    assert json.loads((tmp_path / "target.json").read_text())["actor"] == "target"
+    assert "of its target actor" in proc.stdout
+    # a run whose learner keeps no target actor is refused, naming the setting and the run
+    sac = tmp_path / "sac"
+    sac.mkdir()
+    (sac / "config.yaml").write_text((trained / "config.yaml").read_text().replace("learner: td3", "learner: sac"))
+    from torchrl.checkpoint import Checkpoint
+
+    from torchrl_sail.runs import checkpoint_dir
+
+    Checkpoint(run={"frames": 1000}).save(checkpoint_dir(sac))
+    proc = evaluate(f"run_dir={sac}", "episodes=1", "actor=target", check=False)
+    assert proc.returncode != 0 and f"actor=target: run_dir={sac} is algo=sail, a sac learner" in proc.stderr
+    assert not (sac / "evaluation.json").exists()
+
+
 def test_evaluate_writes_stats_and_a_video_that_decodes(trained):
     proc = evaluate(f"run_dir={trained}", "episodes=3", "video=true")
     result = json.loads((trained / "evaluation.json").read_text())
     assert result["seed"] == 20_000 and result["env"] == "Hopper-v4" and result["algo"] == "sail"
+    assert result["actor"] == "online"
     for key in ("dense_return", "delayed_reward", "length"):
         s = result[key]
         assert len(s["values"]) == 3 and s["min"] <= s["mean"] <= s["max"]
