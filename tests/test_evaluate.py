@@ -78,9 +78,14 @@ def test_target_actor_has_the_checkpoints_target_weights(trained):
 
 
 def test_evaluate_target_actor_and_a_learner_without_one(trained, tmp_path):
-    proc = evaluate(f"run_dir={trained}", "episodes=1", "actor=target", f"out={tmp_path / 'target.json'}")
-    assert json.loads((tmp_path / "target.json").read_text())["actor"] == "target"
-    assert "of its target actor" in proc.stdout
+    results = {}
+    for actor in ("online", "target"):
+        proc = evaluate(f"run_dir={trained}", "episodes=1", f"actor={actor}", f"out={tmp_path / actor}.json")
+        results[actor] = json.loads((tmp_path / f"{actor}.json").read_text())
+        assert results[actor]["actor"] == actor and f"of its {actor} actor" in proc.stdout
+    # the same episode (same seed) with other weights: another return
+    assert results["online"]["seed"] == results["target"]["seed"]
+    assert results["online"]["dense_return"]["values"] != results["target"]["dense_return"]["values"]
     # a run whose learner keeps no target actor is refused, naming the setting and the run
     sac = tmp_path / "sac"
     sac.mkdir()
