@@ -112,8 +112,13 @@ def episode_transitions(rollout, absorbing_state: bool):
     return data
 
 
-def check_args(args) -> None:
-    """Everything that can fail is checked before the first episode."""
+def check_args(args, cfg) -> None:
+    """Everything that can fail is checked before the first episode (``cfg``: the run's config)."""
+    if args.actor == "target" and cfg.algo.learner != "td3":
+        raise ValueError(
+            f"actor=target: run_dir={args.run_dir} is algo={cfg.algo.name}, a {cfg.algo.learner} learner without "
+            f"a target actor; only TD3 learners (sail, dac, td3_delayed, ...) keep one"
+        )
     if args.episodes < 1:
         raise ValueError(f"episodes={args.episodes}: must be >= 1")
     if args.video:
@@ -148,14 +153,9 @@ def main(args):  # noqa: F821
     cfg, run = load_run(run_dir)
     if args.device is not None:
         cfg.device = args.device
-    if args.actor == "target" and cfg.algo.learner != "td3":
-        raise ValueError(
-            f"actor=target: run_dir={run_dir} is algo={cfg.algo.name}, a {cfg.algo.learner} learner without a "
-            f"target actor; only TD3 learners (sail, dac, td3_delayed, ...) keep one"
-        )
     seed = cfg.seed + 20_000 if args.seed is None else args.seed
     out = Path(args.out) if args.out else run_dir / "evaluation.json"
-    check_args(args)
+    check_args(args, cfg)
     seed_everything(seed)
     env = make_env(cfg, seed)
     actor = load_actor(cfg, env, checkpoint_dir(run_dir), target=args.actor == "target")
