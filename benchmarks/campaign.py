@@ -80,6 +80,7 @@ WEAK_TEACHERS_DIR = REPO / "benchmarks" / "results" / "campaign" / "teachers"
 # alpha, speed).
 DIAGNOSTICS = (
     "eval/return",
+    "eval/return_target",
     "train/dense_return",
     "teacher/threshold",
     "teacher/num_promoted",

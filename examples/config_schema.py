@@ -304,6 +304,9 @@ class TeacherConfig:
 class EvalConfig:
     every_frames: int = 10_000  # deterministic evaluation cadence (the authors' code has none by default)
     episodes: int = 5
+    # also the TD3 learner's target actor (the Polyak average of its recent weights), on an env
+    # seeded as the evaluation's, so both meet the same start states: eval/return_target
+    target_actor: bool = False
     video_every_frames: int = 0  # 0: off | N: every N frames, one deterministic episode to videos/ (and wandb)
     video_format: VideoFormat = VideoFormat.mp4  # mp4 (needs the `video` extra: imageio-ffmpeg) | gif
     # width, height of the offscreen render (MUJOCO_GL=egl without a display)
@@ -517,6 +520,12 @@ def check_config(cfg: DictConfig) -> None:
             0 <= o.actor_preactivation_coef < math.inf
             and (o.actor_preactivation_coef == 0 or cfg.algo.learner == "td3"),
             "must be a finite number >= 0, and 0 unless algo.learner=td3 (a deterministic tanh actor)",
+        ),
+        (
+            "eval.target_actor",
+            cfg.eval.target_actor,
+            not cfg.eval.target_actor or cfg.algo.learner == "td3",
+            "is TD3's (algo.learner=td3): only a TD3 learner keeps a target actor",
         ),
         ("optim.discriminator.lr", d.lr, d.lr > 0, "must be > 0"),
         ("optim.discriminator.label_smoothing", d.label_smoothing, 0 <= d.label_smoothing < 0.5, "must be in [0, 0.5)"),

@@ -35,6 +35,7 @@ from config_schema import register_config_schema
 from run_utils import (
     actor_lr,
     crossings,
+    evaluate,
     log_metrics,
     logger_states,
     make_loggers,
@@ -80,6 +81,8 @@ def main(cfg):  # noqa: F821
 
     # --- env, teacher, buffers (everything is validated before training starts)
     env, eval_env = make_env(cfg, cfg.seed), make_env(cfg, cfg.seed + 10_000)
+    # eval.target_actor: the target actor's episodes start where the actor's do (same seed, own env)
+    target_eval_env = make_env(cfg, cfg.seed + 10_000) if cfg.eval.target_actor else None
     # SAIL-RND: a curiosity bonus whose statistics the training env keeps (None for other methods)
     rnd, rnd_loss = make_rnd(cfg, env)
     # DAC: terminal transitions go into an absorbing state (the env appends its indicator); the
@@ -254,6 +257,11 @@ def main(cfg):  # noqa: F821
             with timeit("eval"):
                 if crossings(cfg.eval.every_frames, 0, before, frames):
                     metrics["eval/return"] = record_evaluation(eval_env, actor, cfg, run, frames, teacher_return)
+                    if target_eval_env is not None:
+                        with loss.target_actor_network_params.to_module(actor):
+                            metrics["eval/return_target"] = evaluate(
+                                target_eval_env, actor, cfg.eval.episodes, cfg.env.max_episode_steps
+                            )
                 if crossings(cfg.eval.video_every_frames, 0, before, frames):
                     log_video(loggers, render_env, actor, cfg, run_dir, frames)
             with timeit("log"):
@@ -272,6 +280,7 @@ def main(cfg):  # noqa: F821
                 if log_now:
                     log_metrics(loggers, {**metrics, **timeit.todict(prefix="time")}, frames)
                     metrics.pop("eval/return", None)
+                    metrics.pop("eval/return_target", None)
                     metrics.pop("alpha_switch_frame", None)
                     last_log = frames
                 pbar.update(data.numel())

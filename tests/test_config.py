@@ -158,6 +158,7 @@ def test_optional_blocks_are_typed_when_set():
         (["algo.reward.shift=inf"], "algo.reward.shift=inf: must be a finite number"),
         (["optim.actor_preactivation_coef=-1e-3"], "optim.actor_preactivation_coef=-0.001: must be a finite number"),
         (["algo=sail_sac", "optim.actor_preactivation_coef=1e-3"], "and 0 unless algo.learner=td3"),
+        (["algo=sail_sac", "eval.target_actor=true"], "eval.target_actor=True: is TD3's (algo.learner=td3)"),
         (["algo=ddpgfd", "algo.nstep.n=1"], "algo.nstep.n=1: must be >= 2 (algo.nstep=null for the 1-step"),
         (["algo=ddpgfd", "algo.nstep.lambda1=0"], "algo.nstep.lambda1=0.0: must be a finite number > 0"),
         (

@@ -19,7 +19,8 @@ EGL = {"MUJOCO_GL": "egl"}
 
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
-    """2000 frames of SAIL on Hopper with the shipped teacher: one evaluation and one video, at the end."""
+    """2000 frames of SAIL on Hopper with the shipped teacher: one evaluation of the actor and one of its
+    target actor, and one video, at the end."""
     run_dir = tmp_path_factory.mktemp("evaluate") / "run"
     run(
         run_dir,
@@ -30,6 +31,7 @@ def trained(tmp_path_factory):
         "optim.discriminator.steps=2",
         "eval.every_frames=2000",
         "eval.episodes=2",
+        "eval.target_actor=true",
         "eval.video_every_frames=2000",
         "logger.backends=[csv]",
         env=EGL,
@@ -75,6 +77,19 @@ def test_target_actor_has_the_checkpoints_target_weights(trained):
     # 2000 frames of training (tau = 0.005) leave the target actor behind the actor
     first_layer = "actor_network_params.module.0.module.0.weight"
     assert not torch.equal(state[first_layer], state["target_" + first_layer])
+
+
+def test_training_evaluates_the_target_actor_on_the_evaluations_start_states(trained, tmp_path):
+    """eval.target_actor: the logged eval/return_target is evaluate.py's actor=target on the training
+    eval env's seed (run seed + 10000), and eval/return stays the actor's (the test above)."""
+    from example_runner import read_scalar
+
+    [(frames, logged)] = read_scalar(trained, "eval/return_target")
+    [(_, online)] = read_scalar(trained, "eval/return")
+    evaluate(f"run_dir={trained}", "episodes=2", "seed=10000", "actor=target", f"out={tmp_path / 'target.json'}")
+    result = json.loads((tmp_path / "target.json").read_text())
+    assert frames == 2000 and result["checkpoint_frames"] == 2000
+    assert result["dense_return"]["mean"] == pytest.approx(logged, rel=1e-6) and logged != online
 
 
 def test_evaluate_target_actor_and_a_learner_without_one(trained, tmp_path):
