@@ -115,6 +115,15 @@ def evaluate(env, actor, episodes: int, max_steps: int) -> float:
     return sum(e["dense_return"] for e in evaluate_episodes(env, actor, episodes, max_steps)) / episodes
 
 
+def evaluate_target_actor(env, actor, loss, episodes: int, max_steps: int) -> float:
+    """Mean dense return of deterministic episodes of a TD3 loss's target actor (the Polyak average of
+    ``actor``'s recent weights): its weights stand in ``actor``'s for the episodes, then ``actor``'s
+    own come back."""
+    # preserve_module_state=False: the loss's target tensors stay the buffers it saves and updates
+    with loss.target_actor_network_params.to_module(actor, preserve_module_state=False):
+        return evaluate(env, actor, episodes, max_steps)
+
+
 def record_evaluation(eval_env, actor, cfg: DictConfig, run: dict, frames: int, teacher_return: float) -> float:
     """The loops' evaluation at ``frames``: its mean return, kept in ``run["evals"]`` with the first
     frame it beat the teacher (``run["passed_teacher_at"]``)."""

@@ -35,7 +35,7 @@ from config_schema import register_config_schema
 from run_utils import (
     actor_lr,
     crossings,
-    evaluate,
+    evaluate_target_actor,
     log_metrics,
     logger_states,
     make_loggers,
@@ -258,10 +258,9 @@ def main(cfg):  # noqa: F821
                 if crossings(cfg.eval.every_frames, 0, before, frames):
                     metrics["eval/return"] = record_evaluation(eval_env, actor, cfg, run, frames, teacher_return)
                     if target_eval_env is not None:
-                        with loss.target_actor_network_params.to_module(actor):
-                            metrics["eval/return_target"] = evaluate(
-                                target_eval_env, actor, cfg.eval.episodes, cfg.env.max_episode_steps
-                            )
+                        metrics["eval/return_target"] = evaluate_target_actor(
+                            target_eval_env, actor, loss, cfg.eval.episodes, cfg.env.max_episode_steps
+                        )
                 if crossings(cfg.eval.video_every_frames, 0, before, frames):
                     log_video(loggers, render_env, actor, cfg, run_dir, frames)
             with timeit("log"):

@@ -356,6 +356,45 @@ def test_actor_saturation_on_the_agent_rows():
     assert actor_saturation(make("algo=sail_sac"), actor, batch) == {}  # SAC's actor has no pre-tanh action
 
 
+def test_target_actor_evaluation_swaps_the_weights_in_and_back():
+    """evaluate_target_actor runs the actor with the loss's target weights, then restores the actor's,
+    and leaves the loss's target tensors the same objects (what the run saves and Polyak-updates)."""
+    import copy
+
+    import torch
+    from run_utils import evaluate, evaluate_target_actor
+    from tensordict import TensorDict
+    from utils import make_agent, make_discriminator, make_losses
+
+    from torchrl_sail import make_sail_env
+
+    cfg = make()
+    env = make_sail_env("Pendulum-v1", max_episode_steps=20)
+    actor, critic, _ = make_agent(cfg, env)
+    loss = make_losses(cfg, actor, critic, make_discriminator(cfg, env), env.action_spec)[0]
+    with torch.no_grad():  # a target actor other than the actor
+        for value in loss.target_actor_network_params.values(True, True):
+            value.add_(0.5)
+    online = TensorDict.from_module(actor).flatten_keys(".")
+    target = loss.target_actor_network_params.flatten_keys(".")
+    online_ids = {key: id(value) for key, value in online.items()}
+    target_ids = {key: (id(value), type(value)) for key, value in target.items()}
+    # the reference: a copy of the actor holding the target weights
+    reference = copy.deepcopy(actor)
+    loss.target_actor_network_params.to_module(reference)
+
+    env.set_seed(0)
+    swapped = evaluate_target_actor(env, actor, loss, 2, 20)
+    env.set_seed(0)
+    assert swapped == evaluate(env, reference, 2, 20)
+    env.set_seed(0)
+    assert evaluate(env, actor, 2, 20) != swapped  # the actor's own weights are back
+    after = TensorDict.from_module(actor).flatten_keys(".")
+    assert {key: id(value) for key, value in after.items()} == online_ids
+    after_target = loss.target_actor_network_params.flatten_keys(".")
+    assert {key: (id(value), type(value)) for key, value in after_target.items()} == target_ids
+
+
 def test_actor_preactivation_coef_reaches_the_loss():
     from utils import make_agent, make_discriminator, make_losses
 
