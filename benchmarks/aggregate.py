@@ -494,12 +494,15 @@ def total_frames(run: Run) -> int | None:
 
 def label_budgets(runs: list[Run]) -> None:
     """Names each run's method with its budget, ``sail (1M)``, where its (env, teacher, method) has
-    runs at several budgets (``collector.total_frames``); the runs of one budget then group apart."""
+    runs at several budgets (``collector.total_frames``); the runs of one budget then group apart.
+    The method's runs with that teacher on the other envs get their budget too, so that one table
+    row (``sail (300k)``) holds one budget on every env."""
     budgets = defaultdict(set)
     for run in runs:
         budgets[run.env, run.teacher, run.method].add(total_frames(run))
+    several = {(teacher, method) for (_, teacher, method), values in budgets.items() if len(values) > 1}
     for run in runs:
-        if len(budgets[run.env, run.teacher, run.method]) > 1 and total_frames(run) is not None:
+        if (run.teacher, run.method) in several and total_frames(run) is not None:
             run.method = f"{run.method} ({frames_label(total_frames(run))})"
 
 

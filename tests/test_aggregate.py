@@ -571,6 +571,18 @@ def test_runs_at_two_budgets_are_two_cells_not_duplicates(tmp_path):
     assert list(rows) == [("Hopper-v4", "paper", "sail (300k)"), ("Hopper-v4", "paper", "sail (1M)")]
     assert float(rows["Hopper-v4", "paper", "sail (1M)"]["last5_mean"]) == 90.0
     assert "duplicate" not in text and "missing" not in text  # each matrix's cell is there, by its own name
+    # an env run at one budget only: its run is named with its budget too, so a row holds one budget
+    out = tmp_path / "campaign" / "swimmer"
+    run_matrix.record_matrix(out, [run_matrix.Teacher("paper", tmp_path / "p.npz")], ["sail"], ["Swimmer-v4"], [0])
+    write_run(
+        out / "paper" / "Swimmer-v4" / "sail" / "seed0",
+        env="Swimmer-v4",
+        total_frames=300_000,
+        frames=300_000,
+        evals=frames_curve([20.0] * 5),
+    )
+    _, rows = run_aggregate([tmp_path / "campaign"], tmp_path / "report2")
+    assert ("Swimmer-v4", "paper", "sail (300k)") in rows and ("Swimmer-v4", "paper", "sail") not in rows
 
 
 def test_readme_section_in_the_papers_format(tmp_path):
