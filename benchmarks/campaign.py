@@ -19,7 +19,9 @@ teachers stage's), ``--stages preact`` SAIL with the actor's pre-tanh penalty
 paper's teachers, ``--stages centred`` SAIL with its reward centred at D = 1/2
 (``algo.reward.shift=-log 2``; teacher labels ``<teacher>-centred``), and ``--stages logit`` SAIL with
 D's logit (``algo.reward.kind=airl``; ``<teacher>-logit``) on Swimmer and HalfCheetah, none a default.
-``--jobs`` runs go at once; rerunning the same command after an interruption continues where it stopped.
+``--envs`` and ``--seeds`` keep only those cells of the stages (``--stages weak preact --seeds 0``
+pairs each "before" seed with its "after" sooner). ``--jobs`` runs go at once; rerunning the same
+command after an interruption continues where it stopped.
 ``--teachers-dir`` holds the SAIL authors' teacher files
 (``expert_data_no_img_<Env>_scores_<score>_episodes_1.npz``).
 
@@ -305,6 +307,10 @@ def main(argv: list[str] | None = None) -> int:
         "(SAIL with D's logit) are never defaults",
     )
     parser.add_argument(
+        "--envs", nargs="+", choices=ENVS, metavar="ENV", help=f"only these envs' cells ({', '.join(ENVS)})"
+    )
+    parser.add_argument("--seeds", nargs="+", type=int, metavar="SEED", help="only these seeds' cells")
+    parser.add_argument(
         "--overrides",
         nargs="+",
         default=[],
@@ -320,7 +326,16 @@ def main(argv: list[str] | None = None) -> int:
         for target in collect(out, args.collect):
             print(target)
         return 0
-    cells = [c for c in plan() if c.stage in args.stages and (base_label(c) != "random" or args.random_teacher)]
+    cells = [
+        c
+        for c in plan()
+        if c.stage in args.stages
+        and (base_label(c) != "random" or args.random_teacher)
+        and (args.envs is None or c.env in args.envs)
+        and (args.seeds is None or c.seed in args.seeds)
+    ]
+    if not cells:
+        parser.error(f"--stages {' '.join(args.stages)} has no cell with these --envs and --seeds")
     if any(c.teacher.startswith("paper") for c in cells):  # --stages weak alone needs no paper teacher
         if args.teachers_dir is None:
             parser.error(f"--teachers-dir is required by --stages {' '.join(args.stages)}")

@@ -335,3 +335,29 @@ def test_reward_stages_give_the_weak_and_the_paper_teachers_and_the_override(
     with pytest.raises(SystemExit):
         campaign.main([*args, "--dry-run"])
     assert "lacks weak_swimmer" in capsys.readouterr().err
+
+
+def test_envs_and_seeds_keep_only_their_cells(tmp_path, capsys):
+    teachers, weak = tmp_path / "teachers", tmp_path / "weak"
+    teachers.mkdir()
+    for name in campaign.PAPER_TEACHERS.values():
+        (teachers / name).touch()
+    for label in campaign.WEAK_TEACHERS.values():
+        (weak / label).mkdir(parents=True)
+    args = ["--teachers-dir", str(teachers), "--weak-teachers-dir", str(weak), "--out", str(tmp_path / "out")]
+    # the 1M stage's Hopper run alone
+    assert campaign.main([*args, "--stages", "scale", "--envs", "Hopper-v4", "--dry-run"]) == 0
+    (line,) = capsys.readouterr().out.splitlines()
+    assert "env=Hopper-v4" in line and "collector.total_frames=1000000" in line
+    # seed 0 of the weak teachers' before and after rows, in the plan's order: 2 weak + 2 + 4 paper preact
+    assert campaign.main([*args, "--stages", "weak", "preact", "--seeds", "0", "--dry-run"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 8 and all("seed=0 " in line for line in lines)
+    assert ["preact" in line for line in lines] == [False] * 2 + [True] * 6
+    # a filter that leaves nothing is an error, not a silent no-op
+    with pytest.raises(SystemExit):
+        campaign.main([*args, "--stages", "weak", "--seeds", "7", "--dry-run"])
+    assert "--stages weak has no cell with these --envs and --seeds" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        campaign.main([*args, "--envs", "Ant-v4", "--dry-run"])
+    assert "invalid choice: 'Ant-v4'" in capsys.readouterr().err
