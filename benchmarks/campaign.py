@@ -28,7 +28,9 @@ command after an interruption continues where it stopped.
 ``--collect DEST`` copies what the report needs of every finished run under ``--out`` to the
 same place under ``DEST`` (``aggregate.py DEST`` reads it): ``config.yaml``, ``summary.json``,
 the stage's ``matrix.json``, and one ``scalars.csv`` (``tag,frames,value``) with the evaluation
-curve and the diagnostics of :data:`DIAGNOSTICS`, not the per-scalar log folders.
+curve and the diagnostics of :data:`DIAGNOSTICS`, not the per-scalar log folders. With
+``--collect``, ``--stages``, ``--envs`` and ``--seeds`` keep only those runs (``--collect DEST
+--stages scale --envs Hopper-v4`` copies the one 1M-frame Hopper run).
 """
 
 from __future__ import annotations
@@ -256,13 +258,34 @@ def finished(run_dir: Path) -> bool:
     return done.get("offline", False) or done.get("frames", 0) >= done.get("total_frames", 1)
 
 
-def collect(out: Path, dest: Path) -> list[Path]:
-    """Copies the report's files of every finished run under ``out`` to ``dest``; returns the runs copied."""
-    copied = []
-    for summary in sorted(out.rglob("summary.json")):
+def collect(
+    out: Path,
+    dest: Path,
+    stages: list[str] | None = None,
+    envs: list[str] | None = None,
+    seeds: list[int] | None = None,
+) -> list[Path]:
+    """Copies the report's files of every finished run under ``out`` to ``dest``; returns the runs copied.
+
+    ``stages``, ``envs`` and ``seeds`` (each ``None`` for all) keep only the runs whose folder,
+    ``<stage>/<teacher>/<env>/<method>/seed<seed>``, names them.
+    """
+    runs = []
+    for summary in sorted(out.glob("*/*/*/*/*/summary.json")):
         run_dir = summary.parent
-        if not finished(run_dir):
-            continue
+        stage, _, env, _, seed = run_dir.relative_to(out).parts
+        if (
+            (stages is None or stage in stages)
+            and (envs is None or env in envs)
+            and (seeds is None or seed in {f"seed{s}" for s in seeds})
+            and finished(run_dir)
+        ):
+            runs.append(run_dir)
+    stray = [run_dir for run_dir in runs if not (run_dir / "config.yaml").exists()]
+    if stray:  # checked before anything is copied
+        raise FileNotFoundError(f"{stray[0]} has a summary.json but no config.yaml: not a run folder")
+    copied = []
+    for run_dir in runs:
         target = dest / run_dir.relative_to(out)
         target.mkdir(parents=True, exist_ok=True)
         for name in ("config.yaml", "summary.json"):
@@ -301,8 +324,8 @@ def main(argv: list[str] | None = None) -> int:
         "--stages",
         nargs="+",
         choices=["main", "scale", "teachers", "buffer", "weak", "precision", "preact", "centred", "logit"],
-        default=["main", "scale", "teachers", "buffer"],
-        help="weak (SAIL with weak teachers), precision (fp32 against bf16: it needs bf16 hardware), preact "
+        help="the stages to run (default: main scale teachers buffer) or, with --collect, to copy (default: "
+        "all); weak (SAIL with weak teachers), precision (fp32 against bf16: it needs bf16 hardware), preact "
         "(SAIL with the actor's pre-tanh penalty), centred (SAIL with its reward centred at D = 1/2) and logit "
         "(SAIL with D's logit) are never defaults",
     )
@@ -323,22 +346,23 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     out = args.out.expanduser().resolve()
     if args.collect:
-        for target in collect(out, args.collect):
+        for target in collect(out, args.collect, args.stages, args.envs, args.seeds):
             print(target)
         return 0
+    stages = args.stages or ["main", "scale", "teachers", "buffer"]
     cells = [
         c
         for c in plan()
-        if c.stage in args.stages
+        if c.stage in stages
         and (base_label(c) != "random" or args.random_teacher)
         and (args.envs is None or c.env in args.envs)
         and (args.seeds is None or c.seed in args.seeds)
     ]
     if not cells:
-        parser.error(f"--stages {' '.join(args.stages)} has no cell with these --envs and --seeds")
+        parser.error(f"--stages {' '.join(stages)} has no cell with these --envs and --seeds")
     if any(c.teacher.startswith("paper") for c in cells):  # --stages weak alone needs no paper teacher
         if args.teachers_dir is None:
-            parser.error(f"--teachers-dir is required by --stages {' '.join(args.stages)}")
+            parser.error(f"--teachers-dir is required by --stages {' '.join(stages)}")
         missing = [name for name in PAPER_TEACHERS.values() if not (args.teachers_dir / name).exists()]
         if missing:
             parser.error(f"--teachers-dir {args.teachers_dir} lacks {', '.join(missing)}")
@@ -349,7 +373,7 @@ def main(argv: list[str] | None = None) -> int:
     if missing:
         parser.error(f"--weak-teachers-dir {weak_dir} lacks {', '.join(missing)} (see benchmarks/README.md)")
     device = device_of(args.overrides)
-    if "precision" in args.stages and not args.dry_run and not native_bf16_matmul(device):
+    if "precision" in stages and not args.dry_run and not native_bf16_matmul(device):
         parser.error(
             f"--stages precision runs optim.precision=bf16, which the {device} here emulates (a CPU without "
             "AVX-512 or AMX: ~20x slower): run it where bf16 is native, or on a GPU with --overrides device=cuda"

@@ -220,6 +220,35 @@ def test_collect_copies_finished_runs_compactly_and_aggregate_reads_them(tmp_pat
     assert aggregate.read_scalar(target, "d/accuracy_agent") == [(1000, 0.75)]
 
 
+def test_collect_keeps_the_stages_envs_and_seeds_asked_and_refuses_a_summary_alone(tmp_path, capsys):
+    out, dest = tmp_path / "runs", tmp_path / "results"
+    runs = [
+        ("scale", "paper", "Hopper-v4", 0),
+        ("scale", "paper", "HalfCheetah-v4", 0),
+        ("weak", "weak_swimmer", "Swimmer-v4", 1),
+        ("weak", "weak_swimmer", "Swimmer-v4", 2),
+    ]
+    for stage, teacher, env, seed in runs:
+        run_dir = out / stage / teacher / env / "sail" / f"seed{seed}"
+        run_dir.mkdir(parents=True)
+        (run_dir / "config.yaml").write_text("seed: 0\n")
+        (run_dir / "summary.json").write_text(json.dumps({"frames": 10, "total_frames": 10}))
+    base = ["--out", str(out), "--collect", str(dest)]
+
+    assert campaign.main([*base, "--stages", "scale", "--envs", "Hopper-v4"]) == 0
+    assert capsys.readouterr().out.split() == [str(dest / "scale" / "paper" / "Hopper-v4" / "sail" / "seed0")]
+    assert campaign.main([*base, "--seeds", "2"]) == 0  # --stages unset: every stage
+    assert capsys.readouterr().out.split() == [str(dest / "weak" / "weak_swimmer" / "Swimmer-v4" / "sail" / "seed2")]
+    assert len(campaign.collect(out, dest)) == 4
+
+    # a finished run's summary.json copied alone (e.g. to make resume=auto skip the run) is not a run folder
+    (out / "weak" / "weak_swimmer" / "Swimmer-v4" / "sail" / "seed1" / "config.yaml").unlink()
+    with pytest.raises(FileNotFoundError, match="seed1 has a summary.json but no config.yaml"):
+        campaign.collect(out, tmp_path / "other")
+    assert not (tmp_path / "other").exists()  # checked before anything is copied
+    assert len(campaign.collect(out, tmp_path / "other", seeds=[0, 2])) == 3
+
+
 def test_matrix_records_every_stage_and_label(tmp_path, monkeypatch):
     teachers = tmp_path / "teachers"
     teachers.mkdir()
