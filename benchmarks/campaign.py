@@ -110,6 +110,8 @@ DIAGNOSTICS = (
     "actor/preactivation",
     "time/fps",
 )
+# what runs without --stages (the others are never defaults)
+DEFAULT_STAGES = ("main", "scale", "teachers", "buffer")
 COMMON = (
     "threads=1",
     "resume=auto",
@@ -270,6 +272,7 @@ def collect(
     ``stages``, ``envs`` and ``seeds`` (each ``None`` for all) keep only the runs whose folder,
     ``<stage>/<teacher>/<env>/<method>/seed<seed>``, names them.
     """
+    seed_folders = None if seeds is None else {f"seed{seed}" for seed in seeds}
     runs = []
     for summary in sorted(out.glob("*/*/*/*/*/summary.json")):
         run_dir = summary.parent
@@ -277,7 +280,7 @@ def collect(
         if (
             (stages is None or stage in stages)
             and (envs is None or env in envs)
-            and (seeds is None or seed in {f"seed{s}" for s in seeds})
+            and (seed_folders is None or seed in seed_folders)
             and finished(run_dir)
         ):
             runs.append(run_dir)
@@ -324,7 +327,7 @@ def main(argv: list[str] | None = None) -> int:
         "--stages",
         nargs="+",
         choices=["main", "scale", "teachers", "buffer", "weak", "precision", "preact", "centred", "logit"],
-        help="the stages to run (default: main scale teachers buffer) or, with --collect, to copy (default: "
+        help=f"the stages to run (default: {' '.join(DEFAULT_STAGES)}) or, with --collect, to copy (default: "
         "all); weak (SAIL with weak teachers), precision (fp32 against bf16: it needs bf16 hardware), preact "
         "(SAIL with the actor's pre-tanh penalty), centred (SAIL with its reward centred at D = 1/2) and logit "
         "(SAIL with D's logit) are never defaults",
@@ -349,7 +352,7 @@ def main(argv: list[str] | None = None) -> int:
         for target in collect(out, args.collect, args.stages, args.envs, args.seeds):
             print(target)
         return 0
-    stages = args.stages or ["main", "scale", "teachers", "buffer"]
+    stages = args.stages or DEFAULT_STAGES
     cells = [
         c
         for c in plan()
