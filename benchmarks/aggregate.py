@@ -439,17 +439,31 @@ def missing_runs(
 
 
 def config_differences(group: Group) -> dict[str, list]:
-    """Config keys whose values differ between the runs of ``group`` (besides per-run keys like seed)."""
+    """Config keys that every run of ``group`` has, with values that differ between them (besides
+    per-run keys like seed)."""
     flat = [flatten(run.config) for run in group.runs]
-    keys = sorted(set().union(*flat))
     differing = {}
-    for key in keys:
+    for key in sorted(set.intersection(*(set(config) for config in flat))):
         if key.startswith(PER_RUN_KEYS):
             continue
-        values = {json.dumps(config.get(key), sort_keys=True) for config in flat}
+        values = {json.dumps(config[key], sort_keys=True) for config in flat}
         if len(values) > 1:
             differing[key] = sorted(values)
     return differing
+
+
+def config_absences(group: Group) -> dict[tuple[int, ...], dict[str, list]]:
+    """Config keys that some runs of ``group`` lack (they ran from a commit before the setting
+    existed), grouped by the seeds that lack them: ``{seeds: {key: the others' values}}``."""
+    flat = {run.seed: flatten(run.config) for run in group.runs}
+    absent: dict[tuple[int, ...], dict[str, list]] = {}
+    for key in sorted(set().union(*flat.values()) - set.intersection(*(set(c) for c in flat.values()))):
+        if key.startswith(PER_RUN_KEYS):
+            continue
+        seeds = tuple(sorted(seed for seed, config in flat.items() if key not in config))
+        values = {json.dumps(config[key], sort_keys=True) for config in flat.values() if key in config}
+        absent.setdefault(seeds, {})[key] = sorted(values)
+    return absent
 
 
 def flatten(config: dict, prefix: str = "") -> dict:
@@ -821,6 +835,13 @@ def group_notes(group: Group) -> list[str]:
         )
     for key, values in config_differences(group).items():
         notes.append(f"{name}: the seeds differ in {key} ({', '.join(values)}); they are averaged together")
+    for seeds, keys in config_absences(group).items():
+        settings = ", ".join(f"{key} ({', '.join(values)})" for key, values in keys.items())
+        notes.append(
+            f"{name}: the configs of seed{'s' * (len(seeds) > 1)} {', '.join(map(str, seeds))} lack settings "
+            f"the others have: "
+            f"{settings}; they are averaged together"
+        )
     return notes
 
 

@@ -312,7 +312,20 @@ def test_duplicate_run_counted_once_and_config_differences_noted(tmp_path):
     text, rows = run_aggregate([tmp_path], tmp_path / "out")
     assert rows["Hopper-v4", "paper", "sail"]["n_seeds"] == "2"
     assert f"`{tmp_path / 'b' / 'seed0'}`: duplicate of {tmp_path / 'a' / 'seed0'}" in text
-    assert "the seeds differ in optim.precision" in text
+    assert 'the configs of seed 0 lack settings the others have: optim.precision ("bf16")' in text
+
+
+def test_config_differences_and_absences_are_told_apart(tmp_path):
+    write_run(tmp_path / "seed0", optim={"lr": 0.001})
+    write_run(tmp_path / "seed1", seed=1, optim={"lr": 0.001, "coef": 0.0, "noise": 0.1})
+    write_run(tmp_path / "seed2", seed=2, optim={"lr": 0.0003, "coef": 0.0, "noise": 0.2})
+    text, _ = run_aggregate([tmp_path], tmp_path / "out")
+    assert "Hopper-v4 / paper / sail: the seeds differ in optim.lr (0.0003, 0.001); they are averaged together" in text
+    assert (
+        "Hopper-v4 / paper / sail: the configs of seed 0 lack settings the others have: "
+        "optim.coef (0.0), optim.noise (0.1, 0.2); they are averaged together"
+    ) in text
+    assert "differ in optim.coef" not in text and "differ in optim.noise" not in text
 
 
 def test_per_run_details_and_a_frame_logged_twice_counts_once(tmp_path):
