@@ -837,10 +837,9 @@ def group_notes(group: Group) -> list[str]:
         notes.append(f"{name}: the seeds differ in {key} ({', '.join(values)}); they are averaged together")
     for seeds, keys in config_absences(group).items():
         settings = ", ".join(f"{key} ({', '.join(values)})" for key, values in keys.items())
+        which = f"seed{'s' * (len(seeds) > 1)} {', '.join(map(str, seeds))}"
         notes.append(
-            f"{name}: the configs of seed{'s' * (len(seeds) > 1)} {', '.join(map(str, seeds))} lack settings "
-            f"the others have: "
-            f"{settings}; they are averaged together"
+            f"{name}: the configs of {which} lack settings the others have: {settings}; they are averaged together"
         )
     return notes
 
