@@ -28,7 +28,9 @@ command after an interruption continues where it stopped.
 ``--collect DEST`` copies what the report needs of every finished run under ``--out`` to the
 same place under ``DEST`` (``aggregate.py DEST`` reads it): ``config.yaml``, ``summary.json``,
 the stage's ``matrix.json``, and one ``scalars.csv`` (``tag,frames,value``) with the evaluation
-curve and the diagnostics of :data:`DIAGNOSTICS`, not the per-scalar log folders. With
+curve and the diagnostics of :data:`DIAGNOSTICS`, not the per-scalar log folders (a run folder
+without logs, a results copy put back under ``--out`` to mark its cell done, gives its own
+``scalars.csv`` unchanged). With
 ``--collect``, ``--stages``, ``--envs`` and ``--seeds`` keep only those runs (``--collect DEST
 --stages scale --envs Hopper-v4`` copies the one 1M-frame Hopper run).
 """
@@ -284,9 +286,12 @@ def collect(
             and finished(run_dir)
         ):
             runs.append(run_dir)
-    stray = [run_dir for run_dir in runs if not (run_dir / "config.yaml").exists()]
-    if stray:  # checked before anything is copied
-        raise FileNotFoundError(f"{stray[0]} has a summary.json but no config.yaml: not a run folder")
+    for run_dir in runs:  # checked before anything is copied
+        if not (run_dir / "config.yaml").exists():
+            raise FileNotFoundError(f"{run_dir} has a summary.json but no config.yaml: not a run folder")
+        if not (run_dir / "logs" / "scalars").is_dir() and not (run_dir / "scalars.csv").exists():
+            # an empty scalars.csv would replace the curve of the results copy it came from
+            raise FileNotFoundError(f"{run_dir} has neither logs/scalars nor a scalars.csv: nothing to collect")
     copied = []
     for run_dir in runs:
         target = dest / run_dir.relative_to(out)
@@ -296,13 +301,16 @@ def collect(
         stage = run_dir.relative_to(out).parts[0]
         if (out / stage / "matrix.json").exists():
             shutil.copy2(out / stage / "matrix.json", dest / stage / "matrix.json")
-        with open(target / "scalars.csv", "w", newline="") as file:
-            writer = csv.writer(file)
-            writer.writerow(["tag", "frames", "value"])
-            for tag in DIAGNOSTICS:
-                path = run_dir / "logs" / "scalars" / f"{tag}.csv"
-                if path.exists():
-                    writer.writerows([tag, *line.split(",")] for line in path.read_text().split())
+        if (run_dir / "logs" / "scalars").is_dir():
+            with open(target / "scalars.csv", "w", newline="") as file:
+                writer = csv.writer(file)
+                writer.writerow(["tag", "frames", "value"])
+                for tag in DIAGNOSTICS:
+                    path = run_dir / "logs" / "scalars" / f"{tag}.csv"
+                    if path.exists():
+                        writer.writerows([tag, *line.split(",")] for line in path.read_text().split())
+        else:  # a results copy put back under --out: kept as it is
+            shutil.copy2(run_dir / "scalars.csv", target / "scalars.csv")
         copied.append(target)
     return copied
 

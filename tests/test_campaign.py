@@ -231,6 +231,7 @@ def test_collect_keeps_the_stages_envs_and_seeds_asked_and_refuses_a_summary_alo
     for stage, teacher, env, seed in runs:
         run_dir = out / stage / teacher / env / "sail" / f"seed{seed}"
         run_dir.mkdir(parents=True)
+        (run_dir / "logs" / "scalars").mkdir(parents=True)
         (run_dir / "config.yaml").write_text("seed: 0\n")
         (run_dir / "summary.json").write_text(json.dumps({"frames": 10, "total_frames": 10}))
     base = ["--out", str(out), "--collect", str(dest)]
@@ -247,6 +248,28 @@ def test_collect_keeps_the_stages_envs_and_seeds_asked_and_refuses_a_summary_alo
         campaign.collect(out, tmp_path / "other")
     assert not (tmp_path / "other").exists()  # checked before anything is copied
     assert len(campaign.collect(out, tmp_path / "other", seeds=[0, 2])) == 3
+
+
+def test_collect_keeps_a_results_copy_put_back_as_it_is_and_refuses_one_without_its_curve(tmp_path):
+    # A finished cell's results copy (config.yaml, summary.json, scalars.csv) put back under --out
+    # marks the cell done for resume=auto; collecting again must give the same scalars.csv, not an
+    # empty one rebuilt from the logs it does not have.
+    out, dest = tmp_path / "runs", tmp_path / "results"
+    copy = out / "preact" / "paper-preact" / "Hopper-v4" / "sail" / "seed0"
+    copy.mkdir(parents=True)
+    (copy / "config.yaml").write_text("seed: 0\n")
+    (copy / "summary.json").write_text(json.dumps({"frames": 10, "total_frames": 10}))
+    curve = "tag,frames,value\neval/return,10,3.5\n"
+    (copy / "scalars.csv").write_text(curve)
+    assert campaign.collect(out, dest) == [dest / copy.relative_to(out)]
+    assert (dest / copy.relative_to(out) / "scalars.csv").read_text() == curve
+
+    (copy / "scalars.csv").unlink()  # summary.json and config.yaml alone: no curve to collect
+    (dest / copy.relative_to(out) / "summary.json").unlink()
+    with pytest.raises(FileNotFoundError, match="seed0 has neither logs/scalars nor a scalars.csv"):
+        campaign.collect(out, dest)
+    assert (dest / copy.relative_to(out) / "scalars.csv").read_text() == curve  # refused before writing
+    assert not (dest / copy.relative_to(out) / "summary.json").exists()
 
 
 def test_matrix_records_every_stage_and_label(tmp_path, monkeypatch):
