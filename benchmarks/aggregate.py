@@ -16,13 +16,24 @@ name (``shipped`` for the env's default teacher). Writes to ``--out``:
     evaluations when it has fewer, marked † in the table and named in the notes);
   - final: its last evaluation; best: its highest evaluation;
   - frames to pass the teacher: the frames at its first evaluation whose return is above the
-    teacher's (``summary.json``'s ``passed_teacher_at_frame``, else from the curve; None if never).
+    teacher's (``summary.json``'s ``passed_teacher_at_frame``, else from the curve; None if never);
+  - fall share: of its evaluations after the first one above the teacher's return (that one
+    excluded), those below it (``torchrl_sail.runs.fall_share`` of the eval curve; None if it
+    never passed);
+  - best policy: ``summary.json``'s ``best_policy.eval_return``, the evaluation of the policy it
+    kept by its own training returns (absent in runs that did not evaluate one, older runs).
 
   Per group, over seeds: the headline mean (the first column after env, teacher and method:
   "last-5 mean", ``last5_mean`` in the CSV), its sample std (ddof=1) and 95% Student-t CI
-  of the mean (both n/a for one seed), the mean final and mean best
-  evaluation, headline mean / teacher return (the median of the seeds' teacher returns), and
-  the frames to pass the teacher (median over the seeds that passed, with "k/n seeds passed").
+  of the mean (both n/a for one seed), the best policy's mean and std over the seeds that have
+  it ("best policy" beside the headline, ``best_policy_mean``, ``best_policy_std`` and
+  ``best_policy_n`` in the CSV; ``-`` if none has it, "k/n seeds" and a note if only some do),
+  the mean final and mean best evaluation, headline mean / teacher return (the median of the
+  seeds' teacher returns), the frames to pass the teacher (median over the seeds that passed,
+  with "k/n seeds passed"), and the fall share pooled over the seeds that passed: their falls
+  over their evaluations after passing, ``18.6% (13/70)`` (``fall_share`` as a fraction,
+  ``falls`` and ``fall_evaluations`` in the CSV; n/a if no seed passed), so that a seed that
+  passed late, with few evaluations left, weighs by those few.
   A run without an eval CSV (``logger.backends`` without csv) counts ``summary.json``'s final
   evaluation as its one evaluation (and its ``best_eval_return`` as best), noted as such;
 - ``curves_<env>_<teacher>.png``: eval return against frames, one colour per method (mean over
@@ -31,8 +42,8 @@ name (``shipped`` for the env's default teacher). Writes to ``--out``:
 
 A teacher label ``<base>-<variant>`` whose ``<base>`` is another label (the campaign's buffer,
 precision and remedy stages: ``paper-fifo``, ``random-preact``) is also set beside its base in a
-"Variants beside their base" section of ``results.md``: the variant's headline and the base's, for
-the same env, method and budget.
+"Variants beside their base" section of ``results.md``: the variant's headline, vs teacher and fall
+share and the base's, for the same env, method and budget.
 
 Runs of one (env, teacher, method) at different budgets (``collector.total_frames``, e.g. the
 campaign's 300k and 1M SAIL runs) are different cells: their method is shown with the budget,
@@ -46,8 +57,9 @@ env, the headline mean ± std over seeds, the teacher's return and the paper's S
 the teacher dashed), the budget, the CPUs, the wall time and the command of every cell.
 
 ``--per-run`` adds a "Runs" section to ``results.md``: per finished run, its eval curve, when it
-first passed the teacher, its best and final evaluation, its best logged training return, when
-alpha switched (first promotion), promotions and the final threshold C, frames/s and peak memory
+first passed the teacher and its fall share since, its best and final evaluation, its best logged
+training return, when alpha switched (first promotion), promotions and the final threshold C, its
+best policy's evaluation, frames/s and peak memory
 (from ``summary.json`` and the logs; ``read_scalar`` reads a live run's ``logs/scalars/`` and a
 results copy's ``scalars.csv``).
 
@@ -73,7 +85,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from torchrl_sail.runs import read_scalar, write_atomic  # read_scalar: logs/scalars/<tag>.csv or scalars.csv
+# read_scalar: logs/scalars/<tag>.csv or scalars.csv
+from torchrl_sail.runs import fall_share, read_scalar, write_atomic
 
 BENCHMARKS = Path(__file__).resolve().parent
 REPO = BENCHMARKS.parent
@@ -188,6 +201,20 @@ class Run:
         value = (self.summary or {}).get("teacher_return")
         return None if value is None else float(value)
 
+    @property
+    def fall_share(self) -> dict | None:
+        """:func:`~torchrl_sail.runs.fall_share` of its eval curve (the headline's evaluations) and its
+        teacher return: None if it never passed the teacher (or has no curve or teacher return)."""
+        teacher = self.teacher_return
+        return None if teacher is None else fall_share(self.curve, teacher)
+
+    @property
+    def best_policy_return(self) -> float | None:
+        """``summary.json``'s ``best_policy.eval_return``: the evaluation of the policy it kept by its
+        training returns; None for runs that did not evaluate it (older runs have no ``best_policy``)."""
+        value = ((self.summary or {}).get("best_policy") or {}).get("eval_return")
+        return None if value is None else float(value)
+
     def passed_teacher_at(self) -> int | None:
         """Frames at the first eval above the teacher's return (the summary's, else from the curve)."""
         if self.summary and "passed_teacher_at_frame" in self.summary:
@@ -221,8 +248,11 @@ class Group:
 
     def stats(self) -> dict:
         """Over seeds: the headline's mean, sample std (ddof=1) and 95% CI (std and CI None for one
-        seed), the mean final and best evaluation, headline mean / teacher return, and the frames to
-        pass the teacher (median over the seeds that passed; ``seeds_past_teacher``: "k/n")."""
+        seed), the best policy's evaluation (mean and std over the ``best_policy_n`` seeds that have
+        one), the mean final and best evaluation, headline mean / teacher return, the frames to pass
+        the teacher (median over the seeds that passed; ``seeds_past_teacher``: "k/n"), and the fall
+        share pooled over the seeds that passed (``falls`` / ``fall_evaluations``; all three None if
+        none passed, the share None without evaluations after passing)."""
         values = self.values
         mean = statistics.fmean(values)
         std = statistics.stdev(values) if len(values) > 1 else None
@@ -230,6 +260,11 @@ class Group:
         passed = [run.passed_teacher_at() for run in self.runs]
         passed = [frames for frames in passed if frames is not None]
         teacher = self.teacher_return
+        best_policy = [run.best_policy_return for run in self.runs if run.best_policy_return is not None]
+        # pooled, not a mean of per-seed shares: a seed that passed late has few evaluations to weigh
+        shares = [share for share in (run.fall_share for run in self.runs) if share is not None]
+        falls = sum(share["falls"] for share in shares) if shares else None
+        after = sum(share["evaluations"] for share in shares) if shares else None
         return {
             "n_seeds": len(values),
             "seeds": sorted(run.seed for run in self.runs),
@@ -238,11 +273,17 @@ class Group:
             "ci95_low": low,
             "ci95_high": high,
             "headline_evals_min": min(run.headline_evals for run in self.runs),
+            "best_policy_mean": statistics.fmean(best_policy) if best_policy else None,
+            "best_policy_std": statistics.stdev(best_policy) if len(best_policy) > 1 else None,
+            "best_policy_n": len(best_policy),
             "final_mean": statistics.fmean(run.final_return for run in self.runs),
             "best_mean": statistics.fmean(run.best_return for run in self.runs),
             "vs_teacher": mean / teacher if teacher else None,
             "frames_to_teacher_median": statistics.median(passed) if passed else None,
             "seeds_past_teacher": f"{len(passed)}/{len(values)}",
+            "fall_share": falls / after if after else None,
+            "falls": falls,
+            "fall_evaluations": after,
         }
 
 
@@ -588,6 +629,9 @@ CSV_COLUMNS = (
     f"{HEADLINE}_std",
     "ci95_low",
     "ci95_high",
+    "best_policy_mean",
+    "best_policy_std",
+    "best_policy_n",
     "n_seeds",
     "seeds",
     "final_mean",
@@ -596,6 +640,9 @@ CSV_COLUMNS = (
     "vs_teacher",
     "frames_to_teacher_median",
     "seeds_past_teacher",
+    "fall_share",
+    "falls",
+    "fall_evaluations",
     "headline_evals_min",
     "offline",
 )
@@ -620,10 +667,33 @@ def fmt(value: float | None, digits: int = 1) -> str:
     return NA if value is None else f"{value:.{digits}f}"
 
 
+def fmt_fall(share: float | None, falls: int | None, evaluations: int | None) -> str:
+    """``18.6% (13/70)``; ``n/a`` when no run passed, ``n/a (0/0)`` when none evaluated after passing."""
+    if falls is None:
+        return NA
+    return f"{NA if share is None else f'{100 * share:.1f}%'} ({falls}/{evaluations})"
+
+
+def group_fall(stats: dict) -> str:
+    """:func:`fmt_fall` of a group's pooled fall share (:meth:`Group.stats`)."""
+    return fmt_fall(stats["fall_share"], stats["falls"], stats["fall_evaluations"])
+
+
+def best_policy_cell(stats: dict) -> str:
+    """The best policy's mean ± std over seeds as the headline is shown, with "k/n seeds" when only
+    some seeds evaluated it; ``-`` when none did."""
+    if not stats["best_policy_n"]:
+        return "-"
+    std = "" if stats["best_policy_std"] is None else f" ± {fmt(stats['best_policy_std'])}"
+    some = f" ({stats['best_policy_n']}/{stats['n_seeds']} seeds)" if stats["best_policy_n"] < stats["n_seeds"] else ""
+    return f"{fmt(stats['best_policy_mean'])}{std}{some}"
+
+
 def run_details(run: Run) -> str:
-    """A finished run's own figures, in Markdown: its eval curve, when it first passed the teacher,
-    best and final evaluation, best logged training return, alpha switch, promotions and final
-    threshold C, frames/s and peak memory (what ``summary.json`` holds of them)."""
+    """A finished run's own figures, in Markdown: its eval curve, when it first passed the teacher
+    and its fall share since, best and final evaluation, best logged training return, alpha switch,
+    promotions and final threshold C, its best policy's evaluation, frames/s and peak memory (what
+    ``summary.json`` holds of them)."""
     summary, evals = run.summary or {}, run.curve
     train = read_scalar(run.folder, "train/dense_return")
     frames = summary.get("frames", 0)
@@ -642,12 +712,18 @@ def run_details(run: Run) -> str:
             "",
         ]
     if teacher is not None:
+        share = run.fall_share
         lines.append(
             f"- teacher return {teacher:.1f}; "
             + (
                 f"eval first above it at {passed // 1000}k frames"
                 if passed is not None
                 else f"no eval above it within {frames // 1000}k frames"
+            )
+            + (
+                ""
+                if share is None
+                else f"; later evals below it: {fmt_fall(share['share'], share['falls'], share['evaluations'])}"
             )
         )
     lines.append(
@@ -667,6 +743,13 @@ def run_details(run: Run) -> str:
             f"{summary['num_promoted']} promoted"
             + ("" if threshold is None else f"; final threshold C = {threshold:.0f}")
         )
+    if run.best_policy_return is not None:
+        best = summary["best_policy"]
+        lines.append(
+            f"- best policy (kept at {best.get('frames')} frames, training-return mean "
+            f"{fmt(best.get('train_return_mean'), 0)}): eval {run.best_policy_return:.0f} over "
+            f"{best.get('episodes')} episodes"
+        )
     speed = summary.get("frames_per_second")
     memory = summary.get("peak_memory_mb")
     if speed is not None or memory is not None:
@@ -682,18 +765,19 @@ def variants_markdown(variants: list[dict]) -> list[str]:
         "A teacher label `<base>-<variant>` is one campaign stage's change of one setting (`paper-fifo`: the "
         "teacher buffer's rule; `random-preact`: the pre-tanh penalty), run with the teacher of `<base>`. Each "
         f"is set beside the runs of `<base>` with the same env, method and budget: last-{HEADLINE_EVALS} mean "
-        "± std over seeds, and that mean over the teacher's return.",
+        "± std over seeds, that mean over the teacher's return, and the fall share (as in the table above).",
         "",
-        f"| env | teacher (return) | method | variant | last-{HEADLINE_EVALS} mean ± std | vs teacher "
-        f"| base: last-{HEADLINE_EVALS} mean ± std | base: vs teacher |",
-        "|---|---|---|---|---|---|---|---|",
+        f"| env | teacher (return) | method | variant | last-{HEADLINE_EVALS} mean ± std | vs teacher | fall share "
+        f"| base: last-{HEADLINE_EVALS} mean ± std | base: vs teacher | base: fall share |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for row in variants:
         group, base = row["group"], row["base"]
+        stats, base_stats = group.stats(), base.stats() if base else None
         lines.append(
             f"| {row['env']} | {row['teacher']} ({fmt(group.teacher_return)}) | {group.method} | {row['variant']} "
-            f"| {readme_cell(group)} | {fmt(group.stats()['vs_teacher'], 2)} | {readme_cell(base)} "
-            f"| {fmt(base.stats()['vs_teacher'], 2) if base else '-'} |"
+            f"| {readme_cell(group)} | {fmt(stats['vs_teacher'], 2)} | {group_fall(stats)} | {readme_cell(base)} "
+            f"| {fmt(base_stats['vs_teacher'], 2) if base else '-'} | {group_fall(base_stats) if base else '-'} |"
         )
     return lines
 
@@ -716,14 +800,18 @@ def markdown(
         f"Headline: the mean of each run's last {HEADLINE_EVALS} deterministic evaluations (each the mean "
         f"return of eval.episodes episodes), over seeds: mean ± sample std (ddof=1; n/a for one seed) and "
         "its 95% Student-t CI (mean ± t(n - 1) std / sqrt(n); n/a for one seed). "
-        "† a seed had fewer evaluations, all of them averaged (see Notes). Final and best: the mean over "
-        "seeds of each run's last and highest evaluation. vs teacher: headline mean / teacher return. "
+        "† a seed had fewer evaluations, all of them averaged (see Notes). Best policy: the evaluation of "
+        "the policy each run kept by its own training returns (summary.json's best_policy), mean ± std over "
+        "the seeds that evaluated it (k/n seeds when not all did; - when none did). Final and best: the mean "
+        "over seeds of each run's last and highest evaluation. vs teacher: headline mean / teacher return. "
         "Frames to pass teacher: the frames at a run's first evaluation above the teacher's return, median "
-        "over the seeds that passed. Best headline mean per env and teacher in bold.",
+        "over the seeds that passed. Fall share: of the evaluations after a run's first one above the "
+        "teacher's return, the share below it, pooled over the seeds that passed (falls/evaluations; n/a "
+        "if none passed). Best headline mean per env and teacher in bold.",
         "",
-        f"| env | teacher (return) | method | last-{HEADLINE_EVALS} mean ± std | 95% CI | seeds | final | best "
-        "| vs teacher | frames to pass teacher |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        f"| env | teacher (return) | method | last-{HEADLINE_EVALS} mean ± std | best policy | 95% CI | seeds "
+        "| final | best | vs teacher | frames to pass teacher | fall share |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for row in table:
         mean = fmt(row["headline_mean"])
@@ -737,10 +825,11 @@ def markdown(
             if row["offline"]
             else f"{fmt(row['frames_to_teacher_median'], 0)} ({row['seeds_past_teacher']} seeds passed)"
         )
+        fall = "offline" if row["offline"] else group_fall(row)
         lines.append(
             f"| {row['env']} | {row['teacher']} ({fmt(row['teacher_return'])}) | {row['method']} | "
-            f"{mean}{std}{short} | {ci} | {row['n_seeds']} | {fmt(row['final_mean'])} | "
-            f"{fmt(row['best_mean'])} | {fmt(row['vs_teacher'], 2)} | {passed} |"
+            f"{mean}{std}{short} | {best_policy_cell(row)} | {ci} | {row['n_seeds']} | {fmt(row['final_mean'])} | "
+            f"{fmt(row['best_mean'])} | {fmt(row['vs_teacher'], 2)} | {passed} | {fall} |"
         )
     if variants:
         lines += ["", *variants_markdown(variants)]
@@ -824,7 +913,8 @@ def resume_notes(group: Group) -> list[str]:
 
 def group_notes(group: Group) -> list[str]:
     """Everything a reader of a group's headline should know: :func:`headline_notes`,
-    :func:`resume_notes`, seeds with other teacher returns or other settings."""
+    :func:`resume_notes`, seeds with other teacher returns, seeds without a best-policy evaluation
+    where others have one, seeds with other settings."""
     name = f"{group.env} / {group.teacher} / {group.method}"
     notes = headline_notes(group) + resume_notes(group)
     returns = {run.teacher_return for run in group.runs}
@@ -832,6 +922,13 @@ def group_notes(group: Group) -> list[str]:
         notes.append(
             f"{name}: the seeds' teacher returns differ ({sorted(r for r in returns if r is not None)}); "
             "the table shows their median"
+        )
+    lacking = sorted(run.seed for run in group.runs if run.best_policy_return is None)
+    if 0 < len(lacking) < len(group.runs):  # the best-policy column then averages fewer seeds than the headline
+        notes.append(
+            f"{name}: the best policy averages {len(group.runs) - len(lacking)} of {len(group.runs)} seeds; "
+            f"seed{'s' * (len(lacking) > 1)} {', '.join(map(str, lacking))} did not evaluate one "
+            "(runs before best_policy, or eval.best_policy.episodes=0)"
         )
     for key, values in config_differences(group).items():
         notes.append(f"{name}: the seeds differ in {key} ({', '.join(values)}); they are averaged together")

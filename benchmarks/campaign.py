@@ -75,6 +75,24 @@ WEAK_TEACHERS = {
 CENTRED = (f"algo.reward.shift={-math.log(2)}",)
 # rlkit's pre-tanh penalty on the actor: keeps its tanh out of the saturation a stalled run sits in
 PREACT = ("optim.actor_preactivation_coef=0.001",)
+# The trusted-default candidate (docs/results.md, "The trusted default: decision rule"): the pre-tanh
+# penalty against stalls, and the target actor (the Polyak average of the actor's recent weights)
+# evaluated, kept as the best policy and shipped, against falls. Every run also evaluates the online
+# actor (eval/return_online): the falls' evidence, paired.
+TRUSTED = ("optim.actor_preactivation_coef=0.001", "eval.actor=target", "eval.other_actor=true")
+# the trusted-default confirmation: the paper's teachers and the shipped ones, seeds 0-4
+TRUSTED_SEEDS = (0, 1, 2, 3, 4)
+# the riskiest first: the teachers that stalled, then those that fell
+TRUSTED_ORDER = (
+    ("Swimmer-v4", "shipped"),
+    ("HalfCheetah-v4", "paper"),
+    ("Walker2d-v4", "shipped"),
+    ("Hopper-v4", "paper"),
+    ("Walker2d-v4", "paper"),
+    ("HalfCheetah-v4", "shipped"),
+    ("Swimmer-v4", "paper"),
+    ("Hopper-v4", "shipped"),
+)
 # the stages that run SAIL on the weak teachers (a teacher label "<weak teacher>[-<stage>]")
 WEAK_STAGES = ("weak", "preact", "centred", "logit")
 # D's logit log D - log(1 - D), negative on agent rows: it can pay a fall, so only where no fall ends an episode
@@ -87,6 +105,9 @@ WEAK_TEACHERS_DIR = REPO / "benchmarks" / "results" / "campaign" / "teachers"
 DIAGNOSTICS = (
     "eval/return",
     "eval/return_target",
+    "eval/return_online",
+    "actor/change",
+    "actor/target_gap",
     "train/dense_return",
     "teacher/threshold",
     "teacher/num_promoted",
@@ -205,6 +226,21 @@ def plan() -> list[Cell]:
                 if env in paper_envs
             ]
             cells += [Cell(stage, env, "sail", seed, 300_000, f"paper-{stage}", overrides) for env in paper_envs]
+    # The trusted-default confirmation, seed by seed: the candidate on the 8 teachers ("<teacher>-trusted"),
+    # then what its decision rule compares it with, under the labels of the rows they complete: the
+    # defaults on the shipped teachers ("shipped", the teachers stage's Hopper seeds 0-1 done), and the
+    # defaults and DAC with the paper's teachers, seeds 3-4 ("paper", the main table's seeds 0-2 done).
+    for seed in TRUSTED_SEEDS:
+        cells += [
+            Cell("trusted", env, "sail", seed, 300_000, f"{label}-trusted", TRUSTED) for env, label in TRUSTED_ORDER
+        ]
+        cells += [
+            Cell("trusted", env, "sail", seed, 300_000, "shipped")
+            for env, label in TRUSTED_ORDER
+            if label == "shipped" and not (env == "Hopper-v4" and seed in (0, 1))
+        ]
+        if seed >= 3:
+            cells += [Cell("trusted", env, method, seed, 300_000) for env in ENVS for method in ("sail", "dac")]
     return cells
 
 
@@ -334,11 +370,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--stages",
         nargs="+",
-        choices=["main", "scale", "teachers", "buffer", "weak", "precision", "preact", "centred", "logit"],
+        choices=["main", "scale", "teachers", "buffer", "weak", "precision", "preact", "centred", "logit", "trusted"],
         help=f"the stages to run (default: {' '.join(DEFAULT_STAGES)}) or, with --collect, to copy (default: "
         "all); weak (SAIL with weak teachers), precision (fp32 against bf16: it needs bf16 hardware), preact "
         "(SAIL with the actor's pre-tanh penalty), centred (SAIL with its reward centred at D = 1/2) and logit "
-        "(SAIL with D's logit) are never defaults",
+        "(SAIL with D's logit) and trusted (the trusted-default confirmation) are never defaults",
     )
     parser.add_argument(
         "--envs", nargs="+", choices=ENVS, metavar="ENV", help=f"only these envs' cells ({', '.join(ENVS)})"

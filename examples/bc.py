@@ -24,7 +24,16 @@ import hydra
 import torch
 import tqdm
 from config_schema import register_config_schema
-from run_utils import evaluate, log_metrics, logger_states, make_loggers, make_run, start_run, write_run_summary
+from run_utils import (
+    EXAMPLES_DIR,
+    evaluate,
+    log_metrics,
+    logger_states,
+    make_loggers,
+    make_run,
+    start_run,
+    write_run_summary,
+)
 from torchrl.checkpoint import Checkpoint, GlobalRNGState
 from torchrl.objectives import BCLoss
 from utils import make_agent, make_env, make_teacher
@@ -53,7 +62,16 @@ def main(cfg):  # noqa: F821
     checkpoint = Checkpoint(actor=actor, optim_actor=optimizer, rng=GlobalRNGState(), run=run)
     # The checkpoint is written once training is done: a resumed BC run has nothing left to train,
     # and its logs (indexed by BC steps, not frames) stay as they are.
-    start_or_resume(checkpoint, run_dir, run, resuming, optimizers=[optimizer], truncate_logs=False, config=cfg)
+    start_or_resume(
+        checkpoint,
+        run_dir,
+        run,
+        resuming,
+        optimizers=[optimizer],
+        truncate_logs=False,
+        config=cfg,
+        code_dir=EXAMPLES_DIR,
+    )
     loggers = make_loggers(cfg, run_dir, run["loggers"])
 
     divergence = DivergenceCheck({"loss": loss}, unit="BC step")  # BC's checkpoint is written once, after training
@@ -90,6 +108,7 @@ def main(cfg):  # noqa: F821
         passed_teacher_at_frame=0 if final > teacher_return else None,
         train_seconds=run["train_seconds"],
         resumes=run["resumes"],
+        starts=run["starts"],
     )
 
 

@@ -44,7 +44,11 @@ AbsorbingAction = Choice("AbsorbingAction", {name: name for name in ("zero", "ra
 Eviction = Choice("Eviction", {name: name for name in ("topk", "union", "fifo")})
 Implementation = Choice("Implementation", {name: name for name in ("fused", "loss")})
 Precision = Choice("Precision", {name: name for name in ("fp32", "bf16")})
+# a TD3 learner's actor (online: the one the TD3 step trains) or its target actor (the Polyak
+# average of its recent weights)
 EvaluatedActor = Choice("EvaluatedActor", {name: name for name in ("online", "target")})
+# a run's last checkpoint or the best policy it kept (eval.best_policy)
+EvaluatedPolicy = Choice("EvaluatedPolicy", {name: name for name in ("last", "best")})
 LossFunction = Choice("LossFunction", {name: name for name in ("l1", "l2", "smooth_l1")})
 Activation = Choice("Activation", {name: name for name in ("relu", "tanh", "elu")})
 Backend = Choice("Backend", {name: name for name in ("direct", "process", "ray")})
@@ -301,12 +305,27 @@ class TeacherConfig:
 
 
 @dataclass
+class BestPolicyConfig:
+    """The policy a run keeps as its best, by the SAIL authors' rule (``train_sail.py``'s callback):
+    every ``every_frames`` frames, the mean return of the last ``window`` training episodes; a new
+    high keeps the policy (``best_policy.pt``). At the end, ``episodes`` deterministic episodes of it
+    (on the run's seed + 20000, as ``examples/evaluate.py``) go into ``summary.json``."""
+
+    every_frames: int = 500
+    window: int = 100
+    episodes: int = 50  # 0: no final evaluation
+
+
+@dataclass
 class EvalConfig:
     every_frames: int = 10_000  # deterministic evaluation cadence (the authors' code has none by default)
     episodes: int = 5
-    # also the TD3 learner's target actor (the Polyak average of its recent weights), on an env
-    # seeded as the evaluation's, so both meet the same start states: eval/return_target
-    target_actor: bool = False
+    # the TD3 actor a run evaluates, keeps as its best policy and ships: online | target
+    actor: EvaluatedActor = EvaluatedActor.online
+    # also the other actor (eval/return_online or eval/return_target), on an env seeded as the
+    # evaluation's, so both meet the same start states
+    other_actor: bool = False
+    best_policy: BestPolicyConfig = field(default_factory=BestPolicyConfig)
     video_every_frames: int = 0  # 0: off | N: every N frames, one deterministic episode to videos/ (and wandb)
     video_format: VideoFormat = VideoFormat.mp4  # mp4 (needs the `video` extra: imageio-ffmpeg) | gif
     # width, height of the offscreen render (MUJOCO_GL=egl without a display)
@@ -350,8 +369,10 @@ class EvaluateConfig:
 
     run_dir: str = MISSING  # a run folder written by a training script (config.yaml + checkpoint/)
     episodes: int = 10  # deterministic episodes, each from a fresh reset of one seeded env
-    # online: the trained actor (what training evaluates); target: its Polyak average (TD3 learners)
-    actor: EvaluatedActor = EvaluatedActor.online
+    # last: the run's last checkpoint | best: the policy it kept as its best (best_policy.pt)
+    policy: EvaluatedPolicy = EvaluatedPolicy.last
+    # online: the trained actor; target: its Polyak average (TD3 learners); null: the run's eval.actor
+    actor: Optional[EvaluatedActor] = None
     seed: Optional[int] = None  # null: the run's seed + 20000 (neither its training nor its eval stream)
     video: bool = False  # true: also record the first episode (replayed on a rendering env)
     video_format: VideoFormat = VideoFormat.mp4  # mp4 (needs the `video` extra: imageio-ffmpeg) | gif
@@ -472,6 +493,9 @@ def check_config(cfg: DictConfig) -> None:
         ("optim.discriminator.batch_size", d.batch_size, 1),
         ("env.replay_size", cfg.env.replay_size, 1),
         ("eval.episodes", cfg.eval.episodes, 1),
+        ("eval.best_policy.every_frames", cfg.eval.best_policy.every_frames, 1),
+        ("eval.best_policy.window", cfg.eval.best_policy.window, 1),
+        ("eval.best_policy.episodes", cfg.eval.best_policy.episodes, 0),
         *(
             [
                 ("algo.ppo.frames_per_batch", cfg.algo.ppo.frames_per_batch, 1),
@@ -522,9 +546,15 @@ def check_config(cfg: DictConfig) -> None:
             "must be a finite number >= 0, and 0 unless algo.learner=td3 (a deterministic tanh actor)",
         ),
         (
-            "eval.target_actor",
-            cfg.eval.target_actor,
-            not cfg.eval.target_actor or cfg.algo.learner == "td3",
+            "eval.actor",
+            str(cfg.eval.actor),
+            cfg.eval.actor == EvaluatedActor.online or cfg.algo.learner == "td3",
+            "target is TD3's (algo.learner=td3): only a TD3 learner keeps a target actor",
+        ),
+        (
+            "eval.other_actor",
+            cfg.eval.other_actor,
+            not cfg.eval.other_actor or cfg.algo.learner == "td3",
             "is TD3's (algo.learner=td3): only a TD3 learner keeps a target actor",
         ),
         ("optim.discriminator.lr", d.lr, d.lr > 0, "must be > 0"),

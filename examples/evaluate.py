@@ -1,16 +1,20 @@
-"""Evaluate a trained run: deterministic episodes of its last checkpoint, and optionally a video.
+"""Evaluate a trained run: deterministic episodes of its last checkpoint or its best policy, and optionally a video.
 
     python examples/evaluate.py run_dir=outputs/Hopper-v4/sail/seed0
+    python examples/evaluate.py run_dir=outputs/Hopper-v4/sail/seed0 policy=best episodes=50
     MUJOCO_GL=egl python examples/evaluate.py run_dir=outputs/Hopper-v4/sail/seed0 video=true episodes=20
 
 The run's ``config.yaml`` rebuilds its env and actor (any method: ``sail_td3.py``, ``gail.py``,
 ``bc.py``), the checkpoint's weights are loaded, and ``episodes`` deterministic episodes run on a
 fresh seed (the run's seed + 20000 unless ``seed`` is given). The dense return (what the paper
 reports), the delayed reward r_e (what the learner saw) and the episode length are printed and
-written with their mean, std, min and max to ``<run_dir>/evaluation.json``. ``actor=target``
-evaluates a TD3 learner's target actor (the Polyak average of its recent weights) instead of the
-actor the run's own evaluations use. ``video=true`` replays the first episode on a rendering env
-(same seed: the same episode) into ``evaluation.mp4`` (or ``.gif``) beside it.
+written with their mean, std, min and max to ``<run_dir>/evaluation.json``. ``policy=best``
+evaluates the policy the run kept as its best by its own training returns (``best_policy.pt``,
+the SAIL authors' rule) instead of its last checkpoint. The actor is the one the run's own
+evaluations use (its ``eval.actor``) unless ``actor=online`` or ``actor=target`` (a TD3 learner's
+target actor, the Polyak average of its recent weights) says otherwise. ``video=true`` replays the
+first episode on a rendering env (same seed: the same episode) into ``evaluation.mp4`` (or
+``.gif``) beside it.
 ``export=<dataset id>`` writes the evaluated episodes, with their dense rewards, as a local Minari
 dataset (``pip install -e '.[minari]'``): the trained agent's own trajectories, shareable and
 usable as a teacher (``teacher.path=minari:<dataset id>``).
@@ -31,13 +35,13 @@ import hydra
 import torch
 from config_schema import SAILConfig, register_config_schema
 from omegaconf import OmegaConf
-from run_utils import evaluate_episodes, seed_everything
+from run_utils import evaluate_episodes, load_best_policy, seed_everything
 from torchrl.checkpoint import Checkpoint
 from utils import copy_observation_norm, make_agent, make_discriminator, make_env, make_losses, make_ppo_models
 from video import make_render_env, record_episode, video_fps, write_video
 
 from torchrl_sail import observation_normalizer
-from torchrl_sail.runs import CONFIG, checkpoint_dir, write_atomic
+from torchrl_sail.runs import BEST_POLICY, CONFIG, checkpoint_dir, write_atomic
 
 register_config_schema()
 
@@ -64,12 +68,13 @@ def load_run(run_dir: Path):
     return OmegaConf.merge(defaults, OmegaConf.load(config)), run
 
 
-def load_actor(cfg, env, checkpoint: Path, target: bool = False):
+def load_actor(cfg, env, checkpoint: Path, target: bool = False, best_policy: Path | None = None):
     """The run's deterministic actor with the checkpoint's weights (TD3/SAC keep them in the loss).
 
     A PPO actor reads normalised observations: ``env``'s normaliser gets the training statistics the
     checkpoint holds, frozen. ``target``: a TD3 learner's target actor, the Polyak average of its
-    recent weights, instead of the actor itself.
+    recent weights, instead of the actor itself. ``best_policy``: a TD3/SAC run's
+    ``best_policy.pt``, whose weights replace the checkpoint's.
     """
     if cfg.algo.learner == "ppo":
         actor, _ = make_ppo_models(cfg, env)
@@ -85,7 +90,9 @@ def load_actor(cfg, env, checkpoint: Path, target: bool = False):
         actor, critic, _ = make_agent(cfg, env)
         loss = make_losses(cfg, actor, critic, make_discriminator(cfg, env), env.action_spec)[0]
         Checkpoint(loss=loss).load(checkpoint, components=["loss"])  # the actor's parameters live in the loss
-        if target:
+        if best_policy is not None:
+            load_best_policy(best_policy, loss, "target" if target else "online")
+        elif target:
             loss.actor_network_params.data.copy_(loss.target_actor_network_params.data)
     return actor.eval()
 
@@ -114,6 +121,16 @@ def episode_transitions(rollout, absorbing_state: bool):
 
 def check_args(args, cfg) -> None:
     """Everything that can fail is checked before the first episode (``cfg``: the run's config)."""
+    if args.policy == "best" and cfg.algo.learner not in ("td3", "sac"):
+        raise ValueError(
+            f"policy=best: run_dir={args.run_dir} is algo={cfg.algo.name}, a {cfg.algo.learner} learner; only "
+            f"the off-policy runs of examples/sail_td3.py keep a best policy"
+        )
+    if args.policy == "best" and not (Path(args.run_dir) / BEST_POLICY).exists():
+        raise FileNotFoundError(
+            f"policy=best: run_dir={args.run_dir} has no {BEST_POLICY} (written at the run's checkpoints once a "
+            f"training episode has ended; runs of versions before it have none): use policy=last"
+        )
     if args.actor == "target" and cfg.algo.learner != "td3":
         raise ValueError(
             f"actor=target: run_dir={args.run_dir} is algo={cfg.algo.name}, a {cfg.algo.learner} learner without "
@@ -154,11 +171,14 @@ def main(args):  # noqa: F821
     if args.device is not None:
         cfg.device = args.device
     seed = cfg.seed + 20_000 if args.seed is None else args.seed
+    if args.actor is None:
+        args.actor = cfg.eval.actor  # the actor the run's own evaluations use
     out = Path(args.out) if args.out else run_dir / "evaluation.json"
     check_args(args, cfg)
     seed_everything(seed)
     env = make_env(cfg, seed)
-    actor = load_actor(cfg, env, checkpoint_dir(run_dir), target=args.actor == "target")
+    best_policy = run_dir / BEST_POLICY if args.policy == "best" else None
+    actor = load_actor(cfg, env, checkpoint_dir(run_dir), target=args.actor == "target", best_policy=best_policy)
     episodes = evaluate_episodes(env, actor, args.episodes, cfg.env.max_episode_steps, keep_rollouts=bool(args.export))
 
     result = {
@@ -167,6 +187,9 @@ def main(args):  # noqa: F821
         "algo": cfg.algo.name,
         "run_seed": cfg.seed,
         "checkpoint_frames": run["frames"],
+        "policy": str(args.policy),
+        # the frame the evaluated weights are from: the best policy's, else the checkpoint's
+        "policy_frames": torch.load(best_policy, weights_only=True)["frames"] if best_policy else run["frames"],
         "actor": str(args.actor),
         "seed": seed,
         "episodes": args.episodes,
@@ -200,7 +223,8 @@ def main(args):  # noqa: F821
     write_atomic(out, json.dumps(result, indent=2))
 
     print(
-        f"{cfg.algo.name} on {cfg.env.name} (seed {cfg.seed}), checkpoint at {run['frames']} frames, "
+        f"{cfg.algo.name} on {cfg.env.name} (seed {cfg.seed}), {'best policy' if best_policy else 'checkpoint'} "
+        f"at {result['policy_frames']} frames, "
         f"{args.episodes} deterministic episodes (seed {seed}) of its {args.actor} actor:"
     )
     for key, label in (

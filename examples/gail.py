@@ -42,6 +42,7 @@ import torch
 import tqdm
 from config_schema import register_config_schema
 from run_utils import (
+    EXAMPLES_DIR,
     crossings,
     log_metrics,
     logger_states,
@@ -70,7 +71,14 @@ from utils import (
 from video import log_video, make_render_env
 
 from torchrl_sail import TRANSITION_KEYS, DivergenceCheck, MixedReplayBuffer, observation_normalizer
-from torchrl_sail.runs import checkpoint_dir, last_checkpoint, start_or_resume, train_timing, wall_time
+from torchrl_sail.runs import (
+    checkpoint_dir,
+    fall_share,
+    last_checkpoint,
+    start_or_resume,
+    train_timing,
+    wall_time,
+)
 
 register_config_schema()  # the typed schema conf/config.yaml extends: Hydra checks every value against it
 
@@ -145,7 +153,9 @@ def main(cfg):  # noqa: F821
     if observation_norm is not None:  # the policy's input statistics: a resumed run goes on with them
         stateful["observation_norm"] = observation_norm
     checkpoint = Checkpoint(**stateful)
-    start_or_resume(checkpoint, run_dir, run, resuming, optimizers=optimizers.values(), config=cfg)
+    start_or_resume(
+        checkpoint, run_dir, run, resuming, optimizers=optimizers.values(), config=cfg, code_dir=EXAMPLES_DIR
+    )
     if resuming:
         env.set_seed(cfg.seed + run["frames"])  # a different episode stream than the one before the stop
     loggers = make_loggers(cfg, run_dir, run["loggers"])
@@ -214,7 +224,7 @@ def main(cfg):  # noqa: F821
 
         if crossings(cfg.eval.every_frames, 0, before, frames):
             copy_observation_norm(env, eval_env)
-            metrics["eval/return"] = record_evaluation(eval_env, actor, cfg, run, frames, teacher_return)
+            metrics["eval/return"] = record_evaluation(eval_env, actor, None, cfg, run, frames, teacher_return)
         if crossings(cfg.eval.video_every_frames, 0, before, frames):
             copy_observation_norm(env, render_env)
             log_video(loggers, render_env, actor, cfg, run_dir, frames)
@@ -239,7 +249,9 @@ def main(cfg):  # noqa: F821
         final_eval_return=evals[-1] if evals else None,
         best_eval_return=max(evals) if evals else None,
         passed_teacher_at_frame=run["passed_teacher_at"],
+        fall_share=fall_share(run["evals"], teacher_return),
         resumes=run["resumes"],
+        starts=run["starts"],
         wall_seconds=run["wall_seconds"],
         num_promoted=0,
         frames_per_second=(frames - start_frames) / max(end - start, 1e-9),

@@ -13,6 +13,7 @@ import torch
 from config_schema import check_config, check_script
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
+from tensordict import TensorDict
 from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.record.loggers import get_logger
 
@@ -124,12 +125,124 @@ def evaluate_target_actor(env, actor, loss, episodes: int, max_steps: int) -> fl
         return evaluate(env, actor, episodes, max_steps)
 
 
-def record_evaluation(eval_env, actor, cfg: DictConfig, run: dict, frames: int, teacher_return: float) -> float:
-    """The loops' evaluation at ``frames``: its mean return, kept in ``run["evals"]`` with the first
-    frame it beat the teacher (``run["passed_teacher_at"]``)."""
-    value = evaluate(eval_env, actor, cfg.eval.episodes, cfg.env.max_episode_steps)
+def evaluate_actor(env, actor, loss, which: str, episodes: int, max_steps: int) -> float:
+    """Mean dense return of deterministic episodes of the actor ``which`` names: ``"online"`` (``actor``
+    itself) or ``"target"`` (the loss's target actor, :func:`evaluate_target_actor`)."""
+    if str(which) == "target":
+        return evaluate_target_actor(env, actor, loss, episodes, max_steps)
+    return evaluate(env, actor, episodes, max_steps)
+
+
+def record_evaluation(eval_env, actor, loss, cfg: DictConfig, run: dict, frames: int, teacher_return: float) -> float:
+    """The loops' evaluation at ``frames`` of the actor ``eval.actor`` names: its mean return, kept in
+    ``run["evals"]`` with the first frame it beat the teacher (``run["passed_teacher_at"]``)."""
+    value = evaluate_actor(eval_env, actor, loss, cfg.eval.actor, cfg.eval.episodes, cfg.env.max_episode_steps)
     add_evaluation(run, frames, value, teacher_return)
     return value
+
+
+class BestPolicy:
+    """The policy a run keeps as its best, chosen only from its own training returns: the SAIL
+    authors' rule (their ``train_sail.py`` callback saves ``best_model.pkl``).
+
+    Every ``every_frames`` frames, the mean return of the last ``window`` finished training
+    episodes is compared with the best so far; a strictly higher mean keeps a copy of the actor's
+    weights (and, for a TD3 loss, of its target actor's). The copy lives in memory and is written
+    to ``best_policy.pt`` by :meth:`write`, at the run's checkpoints, so the file always matches
+    the checkpoint a resume continues from. A checkpoint component (``state_dict``).
+
+    Args:
+        loss: the TD3 or SAC loss that holds the actor's weights (``actor_network_params``).
+        every_frames (int): how often the window's mean is compared (the authors': 500).
+        window (int): how many of the latest training episodes are averaged (the authors': 100).
+
+    Examples:
+        >>> import torch
+        >>> from tensordict import TensorDict
+        >>> class Loss:  # stands in for TD3Loss: what BestPolicy reads of it
+        ...     actor_network_params = TensorDict({"w": torch.zeros(2)})
+        >>> loss = Loss()
+        >>> best = BestPolicy(loss, every_frames=500, window=2)
+        >>> best.observe(torch.tensor([10.0, 20.0]), before=0, frames=500)  # mean 15: kept
+        True
+        >>> loss.actor_network_params["w"] += 1.0
+        >>> best.observe(torch.tensor([5.0]), before=500, frames=1000)  # mean of (20, 5) 12.5: not kept
+        False
+        >>> best.frames, best.mean, best.kept["actor"]["w"].tolist()
+        (500, 15.0, [0.0, 0.0])
+    """
+
+    def __init__(self, loss, *, every_frames: int, window: int) -> None:
+        self.live = {"actor": loss.actor_network_params}
+        if hasattr(loss, "target_actor_network_params"):
+            self.live["target_actor"] = loss.target_actor_network_params
+        self.kept = {name: params.data.clone() for name, params in self.live.items()}
+        self.every_frames, self.window = every_frames, window
+        self.returns: list[float] = []
+        self.mean: float | None = None  # the best window mean so far
+        self.frames: int | None = None  # the frame it was reached at
+
+    def observe(self, returns: torch.Tensor, *, before: int, frames: int) -> bool:
+        """Adds the training episodes that ended in ``(before, frames]``; at a multiple of
+        ``every_frames`` in there, keeps the policy if the window's mean is a new high. Returns
+        whether it did."""
+        self.returns = (self.returns + returns.tolist())[-self.window :]
+        if not self.returns or not crossings(self.every_frames, 0, before, frames):
+            return False
+        mean = sum(self.returns) / len(self.returns)
+        if self.mean is not None and mean <= self.mean:
+            return False
+        self.mean, self.frames = mean, frames
+        for name, params in self.live.items():
+            self.kept[name].update_(params.data)
+        return True
+
+    def params(self, which: str):
+        """The kept weights of the actor ``which`` names (``"online"`` or ``"target"``), keyed as the
+        loss keeps them: ``with best.params(which).to_module(actor): ...`` runs the kept policy."""
+        return self.kept["target_actor" if str(which) == "target" else "actor"]
+
+    def record(self) -> dict:
+        return {"frames": self.frames, "train_return_mean": self.mean, "window": self.window}
+
+    def write(self, path: Path) -> None:
+        """``best_policy.pt``: the kept weights (each as ``{name: tensor}``) and :meth:`record`,
+        written atomically; nothing while no policy is kept."""
+        if self.frames is None:
+            return
+        state = {**self.record(), **{name: kept.flatten_keys(".").to_dict() for name, kept in self.kept.items()}}
+        tmp = path.with_name(f".{path.name}.tmp")
+        torch.save(state, tmp)
+        tmp.replace(path)
+
+    def state_dict(self) -> dict:
+        return {
+            "returns": list(self.returns),
+            "mean": self.mean,
+            "frames": self.frames,
+            **{name: kept.flatten_keys(".").to_dict() for name, kept in self.kept.items()},
+        }
+
+    def load_state_dict(self, state: dict) -> None:
+        self.returns, self.mean, self.frames = list(state["returns"]), state["mean"], state["frames"]
+        for name, kept in self.kept.items():
+            kept.update_(TensorDict(state[name]).unflatten_keys("."))
+
+
+def load_best_policy(path: Path, loss, which: str) -> dict:
+    """Puts the weights of ``best_policy.pt`` (:class:`BestPolicy`) for the actor ``which`` names into
+    ``loss``'s actor, and returns the file's record (frames, training-return mean, window)."""
+    if not Path(path).exists():
+        raise FileNotFoundError(
+            f"{path}: no best policy (a run keeps one from its first finished training episode on, "
+            f"written at its checkpoints; runs of torchrl_sail versions before it have none)"
+        )
+    state = torch.load(path, weights_only=True)
+    name = "target_actor" if str(which) == "target" else "actor"
+    if name not in state:
+        raise ValueError(f"{path}: holds no {which} actor (only {sorted(k for k in state if 'actor' in k)})")
+    loss.actor_network_params.data.update_(TensorDict(state[name]).unflatten_keys("."))
+    return {key: state[key] for key in ("frames", "train_return_mean", "window")}
 
 
 # ----------------------------------------------------------------------------- logs and summary

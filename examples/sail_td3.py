@@ -33,9 +33,12 @@ import torch
 import tqdm
 from config_schema import register_config_schema
 from run_utils import (
+    EXAMPLES_DIR,
+    BestPolicy,
     actor_lr,
     crossings,
-    evaluate_target_actor,
+    evaluate,
+    evaluate_actor,
     log_metrics,
     logger_states,
     make_loggers,
@@ -46,6 +49,7 @@ from run_utils import (
 )
 from torchrl.checkpoint import Checkpoint, GlobalRNGState
 from utils import (
+    ActorDrift,
     FilledRows,
     actor_saturation,
     discriminator_block,
@@ -68,7 +72,15 @@ from video import log_video, make_render_env
 
 from torchrl_sail import TRANSITION_KEYS, DivergenceCheck, MixedReplayBuffer
 from torchrl_sail._compat import timeit
-from torchrl_sail.runs import checkpoint_dir, last_checkpoint, start_or_resume, train_timing, wall_time
+from torchrl_sail.runs import (
+    BEST_POLICY,
+    checkpoint_dir,
+    fall_share,
+    last_checkpoint,
+    start_or_resume,
+    train_timing,
+    wall_time,
+)
 
 register_config_schema()  # the typed schema conf/config.yaml extends: Hydra checks every value against it
 
@@ -81,8 +93,9 @@ def main(cfg):  # noqa: F821
 
     # --- env, teacher, buffers (everything is validated before training starts)
     env, eval_env = make_env(cfg, cfg.seed), make_env(cfg, cfg.seed + 10_000)
-    # eval.target_actor: the target actor's episodes start where the actor's do (same seed, own env)
-    target_eval_env = make_env(cfg, cfg.seed + 10_000) if cfg.eval.target_actor else None
+    # eval.other_actor: the other actor's episodes start where the evaluated one's do (same seed, own env)
+    other_eval_env = make_env(cfg, cfg.seed + 10_000) if cfg.eval.other_actor else None
+    other_actor = "online" if cfg.eval.actor == "target" else "target"
     # SAIL-RND: a curiosity bonus whose statistics the training env keeps (None for other methods)
     rnd, rnd_loss = make_rnd(cfg, env)
     # DAC: terminal transitions go into an absorbing state (the env appends its indicator); the
@@ -109,6 +122,11 @@ def main(cfg):  # noqa: F821
     sail_batches = MixedReplayBuffer(teacher, replay, transform=reward, row_id_key="row_id", keys=stored_keys(cfg))
     d_batches = MixedReplayBuffer(teacher, recent)
 
+    # the authors' best policy: the actor at the best mean of the last training returns
+    best_policy = BestPolicy(loss, every_frames=cfg.eval.best_policy.every_frames, window=cfg.eval.best_policy.window)
+    # how far each TD3 block moves the actor (TD3 learners)
+    drift = ActorDrift(actor, loss) if cfg.algo.learner == "td3" else None
+
     # --- everything a stopped run needs to continue, saved and restored as one
     run = make_run(cfg)
     stateful = {
@@ -119,6 +137,7 @@ def main(cfg):  # noqa: F821
         "alpha": alpha_scheduler,
         "rng": GlobalRNGState(),
         "run": run,
+        "best_policy": best_policy,
         **{f"optim_{name}": optimizer for name, optimizer in optimizers.items()},
     }
     if recent is not replay:
@@ -126,7 +145,9 @@ def main(cfg):  # noqa: F821
     if rnd is not None:
         stateful["rnd"] = rnd
     checkpoint = Checkpoint(**stateful)
-    start_or_resume(checkpoint, run_dir, run, resuming, optimizers=optimizers.values(), config=cfg)
+    start_or_resume(
+        checkpoint, run_dir, run, resuming, optimizers=optimizers.values(), config=cfg, code_dir=EXAMPLES_DIR
+    )
     if resuming:
         # The env restarts on a fresh episode: a trajectory cut by the stop is not offered.
         teacher.writer.clear_unfinished()
@@ -158,6 +179,7 @@ def main(cfg):  # noqa: F821
             frames=frames, gradient_steps=gradient_steps, loggers=logger_states(loggers), wall_seconds=wall_seconds
         )
         checkpoint.save(checkpoint_dir(run_dir))
+        best_policy.write(run_dir / BEST_POLICY)  # after the checkpoint it matches
 
     o, d, warmup = cfg.optim, cfg.optim.discriminator, cfg.collector.init_random_frames
     frames, gradient_steps = run["frames"], run["gradient_steps"]
@@ -199,6 +221,7 @@ def main(cfg):  # noqa: F821
             if alpha != alpha_before:
                 metrics["alpha_switch_frame"] = frames
             done = flat["next", "done"].squeeze(-1)
+            best_policy.observe(flat["next", "episode_return"][done].reshape(-1), before=before, frames=frames)
             if done.any():
                 metrics["train/dense_return"] = flat["next", "episode_return"][done].mean()
                 metrics["train/delayed_reward"] = flat["next", "reward"][done].mean()
@@ -221,6 +244,8 @@ def main(cfg):  # noqa: F821
                     "next", "reward"
                 ].mean()
                 last = {}
+                if drift is not None:
+                    drift.start(block[0])
                 for batch in block.unbind(0):
                     gradient_steps += 1
                     with timeit("update"):
@@ -232,6 +257,8 @@ def main(cfg):  # noqa: F821
                             )
                         )
                 metrics.update({f"sail/{key}": value for key, value in last.items()})
+                if drift is not None:
+                    metrics.update(drift.measure())
                 if alpha < 1:  # the batch holds agent rows
                     metrics.update(actor_saturation(cfg, actor, batch))
             num_d_steps = crossings(d.every_frames, warmup, before, frames) * d.steps if uses_discriminator else 0
@@ -256,10 +283,10 @@ def main(cfg):  # noqa: F821
 
             with timeit("eval"):
                 if crossings(cfg.eval.every_frames, 0, before, frames):
-                    metrics["eval/return"] = record_evaluation(eval_env, actor, cfg, run, frames, teacher_return)
-                    if target_eval_env is not None:
-                        metrics["eval/return_target"] = evaluate_target_actor(
-                            target_eval_env, actor, loss, cfg.eval.episodes, cfg.env.max_episode_steps
+                    metrics["eval/return"] = record_evaluation(eval_env, actor, loss, cfg, run, frames, teacher_return)
+                    if other_eval_env is not None:
+                        metrics[f"eval/return_{other_actor}"] = evaluate_actor(
+                            other_eval_env, actor, loss, other_actor, cfg.eval.episodes, cfg.env.max_episode_steps
                         )
                 if crossings(cfg.eval.video_every_frames, 0, before, frames):
                     log_video(loggers, render_env, actor, cfg, run_dir, frames)
@@ -279,7 +306,7 @@ def main(cfg):  # noqa: F821
                 if log_now:
                     log_metrics(loggers, {**metrics, **timeit.todict(prefix="time")}, frames)
                     metrics.pop("eval/return", None)
-                    metrics.pop("eval/return_target", None)
+                    metrics.pop(f"eval/return_{other_actor}", None)
                     metrics.pop("alpha_switch_frame", None)
                     last_log = frames
                 pbar.update(data.numel())
@@ -300,6 +327,14 @@ def main(cfg):  # noqa: F821
     save(frames, gradient_steps)
 
     evals = [value for _, value in run["evals"]]
+    # the best policy's deterministic episodes, on the stream examples/evaluate.py uses by default
+    best = best_policy.record()
+    if best["frames"] is not None and cfg.eval.best_policy.episodes:
+        with best_policy.params(cfg.eval.actor).to_module(actor, preserve_module_state=False):
+            best["eval_return"] = evaluate(
+                make_env(cfg, cfg.seed + 20_000), actor, cfg.eval.best_policy.episodes, cfg.env.max_episode_steps
+            )
+        best.update(actor=str(cfg.eval.actor), episodes=cfg.eval.best_policy.episodes, seed=cfg.seed + 20_000)
     write_run_summary(
         run_dir,
         cfg,
@@ -311,7 +346,11 @@ def main(cfg):  # noqa: F821
         final_eval_return=evals[-1] if evals else None,
         best_eval_return=max(evals) if evals else None,
         passed_teacher_at_frame=run["passed_teacher_at"],
+        fall_share=fall_share(run["evals"], teacher_return),
+        best_policy=best,
+        evaluated_actor=str(cfg.eval.actor),
         resumes=run["resumes"],
+        starts=run["starts"],
         wall_seconds=run["wall_seconds"],
         num_promoted=teacher.writer.num_promoted,
         teacher_threshold=teacher.writer.threshold,

@@ -323,6 +323,40 @@ def actor_saturation(cfg: DictConfig, actor, batch) -> dict:
     }
 
 
+class ActorDrift:
+    """How far one TD3 block moves the actor, on the observations of a batch of that block.
+
+    ``start(batch)`` before the block's updates records the actor's actions on the batch's
+    observations; ``measure()`` after it gives ``actor/change``, the mean ``|a_after - a_before|``
+    over rows and action components, and ``actor/target_gap``, the same distance from the target
+    actor (the Polyak average that evaluations may use instead). A large change per block with a
+    small target gap is an online actor that swings around a steadier average.
+    """
+
+    def __init__(self, actor, loss) -> None:
+        self.actor, self.loss = actor, loss
+        self.observations = self.before = None
+
+    @torch.no_grad()
+    def _actions(self, params=None) -> torch.Tensor:
+        if params is None:
+            return self.actor(self.observations.copy())["action"]
+        with params.to_module(self.actor, preserve_module_state=False):
+            return self.actor(self.observations.copy())["action"]
+
+    def start(self, batch) -> None:
+        self.observations = batch.select(*self.actor.in_keys).clone()
+        self.before = self._actions()
+
+    def measure(self) -> dict:
+        after = self._actions()
+        target = self._actions(self.loss.target_actor_network_params)
+        return {
+            "actor/change": (after - self.before).abs().mean(),
+            "actor/target_gap": (after - target).abs().mean(),
+        }
+
+
 def make_discriminator(cfg: DictConfig, env) -> Discriminator:
     return Discriminator(
         env.observation_spec["observation"].shape[-1],

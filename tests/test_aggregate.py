@@ -123,7 +123,7 @@ def test_run_with_three_evals_averages_all_three_and_says_so(tmp_path):
     text, rows = run_aggregate([tmp_path / "runs"], tmp_path / "out")
     row = rows["Hopper-v4", "paper", "sail"]
     assert float(row["last5_mean"]) == 30.0 and row["headline_evals_min"] == "3"
-    assert "| sail | 30.0 † | n/a | 1 | 60.0 | 60.0 | 0.20 | n/a (0/1 seeds passed) |" in text
+    assert "| sail | 30.0 † | - | n/a | 1 | 60.0 | 60.0 | 0.20 | n/a (0/1 seeds passed) | n/a |" in text
     assert (
         "Hopper-v4 / paper / sail: fewer than 5 evaluations, so the headline averages all of them "
         "(evaluations per seed: seed 0: 3)"
@@ -164,10 +164,11 @@ def test_group_headline_mean_std_ci_final_best_and_seeds_passed(tmp_path):
     )
     assert aggregate.t_ci([7.0, 7.0, 7.0]) == (7.0, 7.0) and aggregate.t_ci([7.0]) == (None, None)
     assert list(read_csv(tmp_path / "out" / "results.csv")[0])[3] == "last5_mean"  # the headline column first
-    assert "| method | last-5 mean ± std | 95% CI |" in text
+    assert "| method | last-5 mean ± std | best policy | 95% CI |" in text
+    # fall share: seed 0 passes at 500, then 5 evals all below; seed 2 passes at 290, then none of 4 below
     assert (
-        f"| Hopper-v4 | paper (250.0) | sail | 200.0 ± 100.0 | [{low:.1f}, {high:.1f}] | 3 | 220.0 | 346.7 | "
-        "0.80 | 2500 (2/3 seeds passed) |"
+        f"| Hopper-v4 | paper (250.0) | sail | 200.0 ± 100.0 | - | [{low:.1f}, {high:.1f}] | 3 | 220.0 | 346.7 | "
+        "0.80 | 2500 (2/3 seeds passed) | 55.6% (5/9) |"
     ) in text
     assert "## Missing or unfinished runs\n\nNone." in text
     assert "## Notes" not in text  # 5 evals per seed, no eval.episodes in the config
@@ -254,7 +255,7 @@ def test_one_seed_has_no_std_or_ci_and_equal_values_a_point_ci(tmp_path):
     equal = rows["Hopper-v4", "paper", "td3_delayed"]
     assert float(equal["last5_std"]) == 0.0
     assert float(equal["ci95_low"]) == float(equal["ci95_high"]) == pytest.approx(160 / 3)  # mean of 10, 50, 100
-    assert "| sail | **53.3** † | n/a | 1 |" in text  # no "± std" for one seed
+    assert "| sail | **53.3** † | - | n/a | 1 |" in text  # no "± std" for one seed
 
 
 def test_offline_method_counts_with_zero_frames(tmp_path):
@@ -263,7 +264,7 @@ def test_offline_method_counts_with_zero_frames(tmp_path):
     text, rows = run_aggregate([tmp_path], tmp_path / "out")
     bc = rows["Hopper-v4", "paper", "bc"]
     assert bc["offline"] == "True" and float(bc["last5_mean"]) == 120.0
-    assert "| bc | **120.0** † | n/a | 1 | 120.0 | 120.0 | 0.80 | offline |" in text
+    assert "| bc | **120.0** † | - | n/a | 1 | 120.0 | 120.0 | 0.80 | offline | offline |" in text
     assert "Hopper-v4 / paper / bc: fewer than 5 evaluations" in text and "seed 0: 1 (offline)" in text
     assert list(rows) == [("Hopper-v4", "paper", "sail"), ("Hopper-v4", "paper", "bc")]  # display order
 
@@ -352,7 +353,7 @@ def test_per_run_details_and_a_frame_logged_twice_counts_once(tmp_path):
         "|---|---|---|---|",
         "| eval return | 10 | 170 | 120 |",
         "",
-        "- teacher return 150.0; eval first above it at 2k frames",
+        "- teacher return 150.0; eval first above it at 2k frames; later evals below it: 100.0% (1/1)",
         "- best eval 170, final eval 120",
         "- best training-episode mean return logged 240",
         "- alpha switched (first promotion) at 1500 frames; 3 promoted; final threshold C = 21",
@@ -713,10 +714,95 @@ def test_variants_set_beside_their_base_of_the_same_env_method_and_budget(tmp_pa
     section = text.split("## Variants beside their base")[1].split("## Missing")[0]
     table = [line for line in section.splitlines() if line.startswith("| Hopper")]
     assert table == [
-        "| Hopper-v4 | paper (150.0) | sail | bf16 | 75.0 (1 seed) | 0.50 | - | - |",
-        "| Hopper-v4 | paper (150.0) | sail | fifo | 55.0 ± 7.1 (2 seeds) | 0.37 | 150.0 ± 70.7 (2 seeds) | 1.00 |",
+        "| Hopper-v4 | paper (150.0) | sail | bf16 | 75.0 (1 seed) | 0.50 | n/a | - | - | - |",
+        # base seed 1 passes 150 at its first eval (200), then stays above for its 4 others
+        "| Hopper-v4 | paper (150.0) | sail | fifo | 55.0 ± 7.1 (2 seeds) | 0.37 | n/a | 150.0 ± 70.7 (2 seeds) "
+        "| 1.00 | 0.0% (0/4) |",
     ]
     assert "my-teacher" not in section
     # without a variant label the section is left out
     text, _ = run_aggregate([root / "main"], tmp_path / "report_main")
     assert "Variants" not in text
+
+
+def update_summary(folder: Path, **items) -> None:
+    summary = json.loads((folder / "summary.json").read_text())
+    (folder / "summary.json").write_text(json.dumps({**summary, **items}))
+
+
+def test_fall_share_is_pooled_over_the_seeds_that_passed(tmp_path):
+    # teacher 100: falls are the evals below it after the first one above it (that one excluded)
+    cells = (
+        ("sail", 0, [50, 120, 90, 110, 80, 130, 100]),  # passes at 120; then 90 and 80 below (100 is not): 2/5
+        ("sail", 1, [101, 99, 150, 50, 120]),  # passes at 101; then 99 and 50 below: 2/4
+        ("sail", 2, [10, 100, 90, 99, 100]),  # never above 100 (equal is not): left out of the pool
+        ("td3_delayed", 0, [10, 20, 30]),  # no seed passed: n/a
+        ("dac", 0, [10, 20, 200]),  # passed at its last eval: none after, 0/0
+    )
+    for method, seed, curve in cells:
+        write_run(
+            tmp_path / method / f"seed{seed}",
+            algo=method,
+            seed=seed,
+            evals=frames_curve(curve),
+            teacher_return=100.0,
+            total_frames=3000,
+            frames=7000,
+        )
+    run = aggregate.load_run(tmp_path / "sail" / "seed0")
+    assert run.fall_share == {"share": 0.4, "falls": 2, "evaluations": 5}
+    assert aggregate.load_run(tmp_path / "sail" / "seed2").fall_share is None
+    text, rows = run_aggregate([tmp_path], tmp_path / "out", per_run=True)
+    sail = rows["Hopper-v4", "paper", "sail"]
+    # pooled 4/9, not the mean of the seeds' shares (0.4 + 0.5) / 2 = 0.45
+    assert float(sail["fall_share"]) == pytest.approx(4 / 9)
+    assert (sail["falls"], sail["fall_evaluations"]) == ("4", "9")
+    td3 = rows["Hopper-v4", "paper", "td3_delayed"]
+    assert (td3["fall_share"], td3["falls"], td3["fall_evaluations"]) == ("n/a", "n/a", "n/a")
+    dac = rows["Hopper-v4", "paper", "dac"]
+    assert (dac["fall_share"], dac["falls"], dac["fall_evaluations"]) == ("n/a", "0", "0")
+    table = {line.split(" | ")[2]: line for line in text.split("\n\n")[1].splitlines()[2:]}
+    assert table["sail"].endswith("| 1500 (2/3 seeds passed) | 44.4% (4/9) |")  # passed at 2000 and 1000
+    assert table["td3_delayed"].endswith("| n/a (0/1 seeds passed) | n/a |")
+    assert table["dac"].endswith("| 3000 (1/1 seeds passed) | n/a (0/0) |")
+    assert "| frames to pass teacher | fall share |" in text
+    details = text.split("## Runs\n\n")[1]
+    assert "- teacher return 100.0; eval first above it at 2k frames; later evals below it: 40.0% (2/5)" in details
+    assert "- teacher return 100.0; no eval above it within 7k frames\n" in details  # sail seed 2
+
+
+def test_best_policy_mean_and_std_over_the_seeds_that_evaluated_it(tmp_path):
+    def best_policy(value: float | None) -> dict:
+        record = {"frames": 2000, "train_return_mean": 280.0, "window": 100}
+        if value is None:  # kept, not evaluated (eval.best_policy.episodes=0)
+            return record
+        return {**record, "eval_return": value, "actor": "online", "episodes": 50, "seed": 20_000}
+
+    for seed, value in ((0, 300.0), (1, 500.0), (2, "no key"), (3, None)):
+        folder = write_run(tmp_path / "sail" / f"seed{seed}", seed=seed, evals=frames_curve([100.0] * 5))
+        if value != "no key":  # seed 2: a run from before best_policy
+            update_summary(folder, best_policy=best_policy(value))
+    folder = write_run(tmp_path / "td3" / "seed0", algo="td3_delayed", evals=frames_curve([50.0] * 5))
+    update_summary(folder, best_policy=best_policy(250.0))
+    write_run(tmp_path / "dac" / "seed0", algo="dac", evals=frames_curve([50.0] * 5))  # no seed has one
+    text, rows = run_aggregate([tmp_path], tmp_path / "out", per_run=True)
+    sail = rows["Hopper-v4", "paper", "sail"]
+    assert float(sail["best_policy_mean"]) == pytest.approx(400.0)
+    assert float(sail["best_policy_std"]) == pytest.approx(141.42136)  # ddof=1 of 300, 500: 100 * sqrt(2)
+    assert sail["best_policy_n"] == "2" and sail["n_seeds"] == "4"
+    td3 = rows["Hopper-v4", "paper", "td3_delayed"]
+    assert (float(td3["best_policy_mean"]), td3["best_policy_std"], td3["best_policy_n"]) == (250.0, "n/a", "1")
+    dac = rows["Hopper-v4", "paper", "dac"]
+    assert (dac["best_policy_mean"], dac["best_policy_std"], dac["best_policy_n"]) == ("n/a", "n/a", "0")
+    assert "| method | last-5 mean ± std | best policy | 95% CI |" in text
+    assert "| sail | **100.0** ± 0.0 | 400.0 ± 141.4 (2/4 seeds) | [100.0, 100.0] | 4 |" in text
+    assert "| td3_delayed | 50.0 | 250.0 | n/a | 1 |" in text
+    assert "| dac | 50.0 | - | n/a | 1 |" in text
+    assert (
+        "- Hopper-v4 / paper / sail: the best policy averages 2 of 4 seeds; seeds 2, 3 did not evaluate one "
+        "(runs before best_policy, or eval.best_policy.episodes=0)"
+    ) in text
+    assert "td3_delayed: the best policy" not in text and "dac: the best policy" not in text
+    details = text.split("## Runs\n\n")[1]
+    assert details.count("- best policy (kept at 2000 frames, training-return mean 280): eval ") == 3
+    assert "eval 500 over 50 episodes" in details

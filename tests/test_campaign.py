@@ -39,6 +39,7 @@ def test_plan_fills_the_table_seed_0_first():
         "preact": 5,
         "centred": 6,
         "logit": 7,
+        "trusted": 8,
     }
     stages = [order[c.stage] for c in cells]
     assert stages == sorted(stages)
@@ -282,7 +283,7 @@ def test_matrix_records_every_stage_and_label(tmp_path, monkeypatch):
         campaign.subprocess, "run", lambda cmd, **kw: launched.append(cmd) or argparse.Namespace(returncode=0)
     )
     assert campaign.main(["--teachers-dir", str(teachers), "--out", str(tmp_path / "out"), "--jobs", "1"]) == 0
-    never = ("weak", "precision", "preact", "centred", "logit")
+    never = ("weak", "precision", "preact", "centred", "logit", "trusted")
     default = [c for c in campaign.plan() if c.teacher != "random" and c.stage not in never]
     assert len(launched) == len(default)  # not the weak, precision and remedy stages: never defaults
     main = json.loads((tmp_path / "out" / "main" / "matrix.json").read_text())
@@ -387,6 +388,39 @@ def test_reward_stages_give_the_weak_and_the_paper_teachers_and_the_override(
     with pytest.raises(SystemExit):
         campaign.main([*args, "--dry-run"])
     assert "lacks weak_swimmer" in capsys.readouterr().err
+
+
+def test_trusted_stage_confirms_the_candidate_on_eight_teachers_beside_its_comparisons(tmp_path, capsys):
+    """Seeds 0-4: the candidate on the paper's and the shipped teachers (40 runs); the defaults on the
+    shipped teachers where the teachers stage has no run (18); the defaults and DAC with the paper's
+    teachers, seeds 3-4 (16); each seed's candidate runs before its comparisons."""
+    cells = [c for c in campaign.plan() if c.stage == "trusted"]
+    candidate = [c for c in cells if c.teacher.endswith("-trusted")]
+    assert len(cells) == 74 and len(set(cells)) == 74 and {c.frames for c in cells} == {300_000}
+    assert Counter((c.teacher, c.seed) for c in candidate) == {
+        (label, seed): 4 for label in ("paper-trusted", "shipped-trusted") for seed in range(5)
+    }
+    assert {c.overrides for c in candidate} == {campaign.TRUSTED} and all(c.method == "sail" for c in candidate)
+    assert "eval.actor=target" in campaign.TRUSTED and "optim.actor_preactivation_coef=0.001" in campaign.TRUSTED
+    shipped = {(c.env, c.seed) for c in cells if c.teacher == "shipped"}
+    assert len(shipped) == 18 and ("Hopper-v4", 1) not in shipped and ("Hopper-v4", 2) in shipped
+    paper = Counter((c.method, c.seed) for c in cells if c.teacher == "paper")
+    assert paper == {(method, seed): 4 for method in ("sail", "dac") for seed in (3, 4)}
+    assert all(not c.overrides for c in cells if c not in candidate)
+    seeds = [c.seed for c in cells]
+    assert seeds == sorted(seeds) and cells[0] == campaign.Cell(
+        "trusted", "Swimmer-v4", "sail", 0, 300_000, "shipped-trusted", campaign.TRUSTED
+    )
+    teachers = tmp_path / "teachers"
+    teachers.mkdir()
+    for name in campaign.PAPER_TEACHERS.values():
+        (teachers / name).touch()
+    out = tmp_path / "out"
+    assert campaign.main(["--teachers-dir", str(teachers), "--out", str(out), "--stages", "trusted", "--dry-run"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 74 and "teacher.path=" not in lines[0]  # the shipped teacher: the env's default
+    assert lines[0].endswith(f"hydra.run.dir={out / 'trusted' / 'shipped-trusted' / 'Swimmer-v4' / 'sail' / 'seed0'}")
+    assert f"teacher.path={teachers / campaign.PAPER_TEACHERS['HalfCheetah-v4']} " in lines[1]
 
 
 def test_envs_and_seeds_keep_only_their_cells(tmp_path, capsys):

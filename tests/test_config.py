@@ -158,7 +158,10 @@ def test_optional_blocks_are_typed_when_set():
         (["algo.reward.shift=inf"], "algo.reward.shift=inf: must be a finite number"),
         (["optim.actor_preactivation_coef=-1e-3"], "optim.actor_preactivation_coef=-0.001: must be a finite number"),
         (["algo=sail_sac", "optim.actor_preactivation_coef=1e-3"], "and 0 unless algo.learner=td3"),
-        (["algo=sail_sac", "eval.target_actor=true"], "eval.target_actor=True: is TD3's (algo.learner=td3)"),
+        (["algo=sail_sac", "eval.other_actor=true"], "eval.other_actor=True: is TD3's (algo.learner=td3)"),
+        (["algo=sail_sac", "eval.actor=target"], "eval.actor='target': target is TD3's (algo.learner=td3)"),
+        (["eval.best_policy.window=0"], "eval.best_policy.window=0: must be >= 1"),
+        (["eval.best_policy.episodes=-1"], "eval.best_policy.episodes=-1: must be >= 0"),
         (["algo=ddpgfd", "algo.nstep.n=1"], "algo.nstep.n=1: must be >= 2 (algo.nstep=null for the 1-step"),
         (["algo=ddpgfd", "algo.nstep.lambda1=0"], "algo.nstep.lambda1=0.0: must be a finite number > 0"),
         (
@@ -406,3 +409,106 @@ def test_actor_preactivation_coef_reaches_the_loss():
     actor, critic, _ = make_agent(cfg, env)
     loss = make_losses(cfg, actor, critic, make_discriminator(cfg, env), env.action_spec)[0]
     assert loss.preactivation_coef == 0.001 and loss.preactivation_key == "param"
+
+
+def _td3_loss():
+    from utils import make_agent, make_discriminator, make_losses
+
+    from torchrl_sail import make_sail_env
+
+    cfg = make()
+    env = make_sail_env("Pendulum-v1", max_episode_steps=20)
+    actor, critic, _ = make_agent(cfg, env)
+    return actor, make_losses(cfg, actor, critic, make_discriminator(cfg, env), env.action_spec)[0], env
+
+
+def test_best_policy_keeps_the_weights_at_the_best_window_mean_and_resumes(tmp_path):
+    """The authors' rule on hand-computed window means: compared only at multiples of every_frames,
+    a strictly higher mean keeps the actor's and the target actor's weights of that moment; the
+    state survives a checkpoint, and best_policy.pt loads into another loss."""
+    import torch
+    from run_utils import BestPolicy, load_best_policy
+    from torchrl.checkpoint import Checkpoint
+
+    actor, loss, _ = _td3_loss()
+    best = BestPolicy(loss, every_frames=1000, window=3)
+
+    def shift(value):
+        with torch.no_grad():
+            for params in (loss.actor_network_params, loss.target_actor_network_params):
+                for tensor in params.values(True, True):
+                    tensor.add_(value)
+
+    def first_weight(params):
+        return next(iter(params.values(True, True))).flatten()[0].item()
+
+    weights = {}  # the first actor weight at each frame
+    steps = [
+        # (returns ended in the batch, frames): window, mean at a multiple of 1000, kept?
+        ([10.0], 500, False),  # 500: no comparison
+        ([20.0], 1000, True),  # (10, 20): 15 -> kept
+        ([90.0], 1500, False),  # no comparison, though the mean (40) is higher
+        ([], 2000, True),  # (10, 20, 90): 40 -> kept
+        ([0.0, 20.0], 3000, False),  # (90, 0, 20): 36.7 < 40
+        ([100.0], 4000, False),  # (0, 20, 100): 40, not strictly higher
+    ]
+    before = 0
+    for returns, frames, kept in steps:
+        shift(1.0)
+        weights[frames] = first_weight(loss.actor_network_params)
+        assert best.observe(torch.tensor(returns), before=before, frames=frames) is kept, frames
+        before = frames
+    assert (best.frames, best.mean) == (2000, 40.0)
+    assert first_weight(best.params("online")) == pytest.approx(weights[2000])  # the weights of frame 2000
+    assert first_weight(best.params("target")) != first_weight(loss.target_actor_network_params)  # not the last
+    kept_target = best.kept["target_actor"].clone()
+    Checkpoint(best_policy=best).save(tmp_path / "ckpt")
+    best.write(tmp_path / "best_policy.pt")
+
+    _, other_loss, _ = _td3_loss()
+    resumed = BestPolicy(other_loss, every_frames=1000, window=3)
+    Checkpoint(best_policy=resumed).load(tmp_path / "ckpt")
+    assert (resumed.frames, resumed.mean, resumed.returns) == (2000, 40.0, [0.0, 20.0, 100.0])
+    assert (resumed.kept["target_actor"] == kept_target).all()
+    record = load_best_policy(tmp_path / "best_policy.pt", other_loss, "target")
+    assert record == {"frames": 2000, "train_return_mean": 40.0, "window": 3}
+    assert (other_loss.actor_network_params.data == kept_target).all()
+    with pytest.raises(FileNotFoundError, match="no best policy"):
+        load_best_policy(tmp_path / "none.pt", other_loss, "online")
+
+
+def test_best_policy_writes_nothing_before_a_training_episode_ends(tmp_path):
+    import torch
+    from run_utils import BestPolicy
+
+    _, loss, _ = _td3_loss()
+    best = BestPolicy(loss, every_frames=500, window=100)
+    assert best.observe(torch.tensor([]), before=0, frames=500) is False
+    best.write(tmp_path / "best_policy.pt")
+    assert not (tmp_path / "best_policy.pt").exists() and best.record()["frames"] is None
+
+
+def test_actor_drift_measures_the_blocks_change_and_the_target_gap():
+    """actor/change: mean |a_after - a_before| on the batch's observations; actor/target_gap: mean
+    |a - a_target| after the block, each against actions computed by hand from the weights."""
+    import torch
+    from tensordict import TensorDict
+    from utils import ActorDrift
+
+    actor, loss, env = _td3_loss()
+    batch = TensorDict({"observation": torch.randn(8, env.observation_spec["observation"].shape[-1])}, [8])
+    drift = ActorDrift(actor, loss)
+    drift.start(batch)
+    with torch.no_grad():
+        before = actor(batch.clone())["action"]
+        for tensor in loss.actor_network_params.values(True, True):  # the "block": a change of the weights
+            tensor.add_(0.05 * torch.randn_like(tensor))
+        after = actor(batch.clone())["action"]
+        with loss.target_actor_network_params.to_module(actor, preserve_module_state=False):
+            target = actor(batch.clone())["action"]
+    measured = drift.measure()
+    assert measured["actor/change"].item() == pytest.approx((after - before).abs().mean().item(), rel=1e-6)
+    assert measured["actor/target_gap"].item() == pytest.approx((after - target).abs().mean().item(), rel=1e-6)
+    assert measured["actor/change"].item() > 0
+    drift.start(batch)
+    assert drift.measure()["actor/change"].item() == 0.0  # no update in between

@@ -31,7 +31,9 @@ def trained(tmp_path_factory):
         "optim.discriminator.steps=2",
         "eval.every_frames=2000",
         "eval.episodes=2",
-        "eval.target_actor=true",
+        "eval.other_actor=true",
+        "eval.best_policy.episodes=2",
+        "checkpoint.every_frames=1000",
         "eval.video_every_frames=2000",
         "logger.backends=[csv]",
         env=EGL,
@@ -80,7 +82,7 @@ def test_target_actor_has_the_checkpoints_target_weights(trained):
 
 
 def test_training_evaluates_the_target_actor_on_the_evaluations_start_states(trained, tmp_path):
-    """eval.target_actor: the logged eval/return_target is evaluate.py's actor=target on the training
+    """eval.other_actor: the logged eval/return_target is evaluate.py's actor=target on the training
     eval env's seed (run seed + 10000), and eval/return stays the actor's (the test above)."""
     from example_runner import read_scalar
 
@@ -90,6 +92,19 @@ def test_training_evaluates_the_target_actor_on_the_evaluations_start_states(tra
     result = json.loads((tmp_path / "target.json").read_text())
     assert frames == 2000 and result["checkpoint_frames"] == 2000
     assert result["dense_return"]["mean"] == pytest.approx(logged, rel=1e-6) and logged != online
+
+
+def test_evaluate_reproduces_the_best_policys_evaluation(trained, tmp_path):
+    """The summary's best-policy figure is evaluate.py's policy=best on the same episodes (seed + 20000),
+    and the kept weights are the actor's at that frame, not the last checkpoint's."""
+    summary = json.loads((trained / "summary.json").read_text())
+    best = summary["best_policy"]
+    assert best["actor"] == "online" and best["episodes"] == 2 and best["window"] == 100
+    assert best["frames"] % 500 == 0 and 0 < best["frames"] <= 2000
+    evaluate(f"run_dir={trained}", "policy=best", "episodes=2", f"out={tmp_path / 'best.json'}")
+    result = json.loads((tmp_path / "best.json").read_text())
+    assert result["policy"] == "best" and result["policy_frames"] == best["frames"] and result["seed"] == 20000
+    assert result["dense_return"]["mean"] == pytest.approx(best["eval_return"], rel=1e-6)
 
 
 def test_evaluate_target_actor_and_a_learner_without_one(trained, tmp_path):

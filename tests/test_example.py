@@ -146,6 +146,7 @@ def test_resume_restores_state(tmp_path, teacher_dir):
         "optim_actor",
         "optim_critic",
         "optim_discriminator",
+        "best_policy",
     )
     before = saved(run_dir, *names)
 
@@ -159,7 +160,12 @@ def test_resume_restores_state(tmp_path, teacher_dir):
     after = saved(run_dir, *names)
     walls = before["run"].pop("wall_seconds"), after["run"].pop("wall_seconds")
     assert walls[0] == first_wall and walls[1] > walls[0] > 0  # each start's training loop adds to it
+    starts = before["run"].pop("starts"), after["run"].pop("starts")
+    assert starts[1][:1] == starts[0] and [start["frames"] for start in starts[1]] == [0, 2000]  # each start kept
     assert after["run"] == before["run"] and before["run"]["frames"] == 2000
+    kept = before["best_policy"], after["best_policy"]  # the kept policy is part of the checkpoint
+    assert kept[0]["frames"] == kept[1]["frames"] is not None and kept[0]["mean"] == kept[1]["mean"]
+    torch.testing.assert_close(kept[1]["actor"], kept[0]["actor"], rtol=0, atol=0)
     torch.testing.assert_close(after["replay"], before["replay"], rtol=0, atol=0)
     teachers = before["teacher"].writer, after["teacher"].writer
     assert teachers[0].window == teachers[1].window and teachers[0].threshold == teachers[1].threshold == 148.0

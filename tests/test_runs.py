@@ -17,9 +17,11 @@ from torchrl_sail._compat import timeit
 from torchrl_sail.runs import (
     add_evaluation,
     checkpoint_dir,
+    fall_share,
     is_finished,
     last_checkpoint,
     new_run,
+    provenance,
     read_scalar,
     restore_run,
     resume_mode,
@@ -260,7 +262,44 @@ def test_start_writes_only_the_config(tmp_path):
     (tmp_path / "run").mkdir()
     start_or_resume(checkpoint, tmp_path / "run", run, False, config=OmegaConf.create({"seed": 3}))
     assert sorted(p.name for p in (tmp_path / "run").iterdir()) == ["config.yaml"]
-    assert run == {**new_run(**identity()), "config": {"seed": 3}}  # each checkpoint keeps the config it trained with
+    starts = run.pop("starts")
+    expected = {**new_run(**identity()), "config": {"seed": 3}}  # each checkpoint keeps the config it trained with
+    del expected["starts"]
+    assert run == expected
+    assert len(starts) == 1 and starts[0]["frames"] == 0 and set(provenance()) <= set(starts[0])
+
+
+def test_every_start_keeps_its_provenance(tmp_path):
+    """A resumed run's starts keep each one's code and machine, with the frame it began at."""
+    run_dir = tmp_path / "run"
+    run, _, _, checkpoint = fresh()
+    run_dir.mkdir()
+    start_or_resume(checkpoint, run_dir, run, False, code_dir=tmp_path)  # not a git checkout: no commit
+    run["frames"] = 2000
+    checkpoint.save(checkpoint_dir(run_dir))
+    run, _, optimizer, checkpoint = fresh()
+    start_or_resume(checkpoint, run_dir, run, True, optimizers=[optimizer])  # the package's checkout
+    assert [start["frames"] for start in run["starts"]] == [0, 2000]
+    assert run["starts"][0]["commit"] is None and run["starts"][1]["commit"] == provenance()["commit"]
+
+
+@pytest.mark.parametrize(
+    ("evals", "expected"),
+    [
+        # passed at 2000; after it 12 < 20 falls, 20.0 (not below) and 31 do not: 1 of 3
+        (
+            [(1000, 5.0), (2000, 30.0), (3000, 12.0), (4000, 20.0), (5000, 31.0)],
+            {"share": 1 / 3, "falls": 1, "evaluations": 3},
+        ),
+        ([(3000, 12.0), (1000, 5.0), (2000, 30.0)], {"share": 1.0, "falls": 1, "evaluations": 1}),  # by frame
+        ([[1000, 5.0], (2000, 30.0), [3000, 12.0]], {"share": 1.0, "falls": 1, "evaluations": 1}),  # resumed: lists
+        ([(1000, 5.0), (2000, 30.0)], {"share": None, "falls": 0, "evaluations": 0}),  # passed at the last one
+        ([(1000, 5.0), (2000, 20.0)], None),  # equal is not above: never passed
+        ([], None),
+    ],
+)
+def test_fall_share_counts_the_evaluations_below_the_teacher_after_the_first_pass(evals, expected):
+    assert fall_share(evals, teacher_return=20.0) == expected
 
 
 def test_truncate_scalar_logs_rewrites_only_the_files_with_later_rows(tmp_path):

@@ -8,6 +8,8 @@ A run folder (the example scripts' ``hydra.run.dir``) holds:
   gradient steps, evaluations, logger states and the run's identity;
 - ``logs/scalars/<tag>.csv``: TorchRL's ``CSVLogger`` rows ``frames,value``, one file per tag
   (``eval/return`` is ``logs/scalars/eval/return.csv``);
+- ``best_policy.pt``: the policy the run kept as its best by its own training returns (the
+  SAIL authors' rule, written by the scripts at each checkpoint);
 - ``summary.json`` (:func:`write_summary`) and ``learning_curve.png``
   (:func:`plot_learning_curve`), written when the run has done its budget.
 
@@ -50,6 +52,7 @@ __all__ = [
     "SCALARS",
     "SUMMARY",
     "RESUME_MAY_CHANGE",
+    "BEST_POLICY",
     "add_evaluation",
     "checkpoint_dir",
     "config_changes",
@@ -57,6 +60,7 @@ __all__ = [
     "cpu_model",
     "actor_summary",
     "discriminator_summary",
+    "fall_share",
     "is_finished",
     "last_checkpoint",
     "new_run",
@@ -76,6 +80,7 @@ __all__ = [
 #: The names of a run folder's entries.
 CONFIG = "config.yaml"
 CHECKPOINT = "checkpoint"
+BEST_POLICY = "best_policy.pt"
 SUMMARY = "summary.json"
 LEARNING_CURVE = "learning_curve.png"
 SCALARS = Path("logs") / "scalars"
@@ -248,7 +253,8 @@ def new_run(*, env: str, algo: str, seed: int, teacher: str | None) -> dict:
     ``wall_seconds``: the wall time of its training loop over all its starts, each up to its last
     checkpoint (building and imports left out; ``None`` for a run continued from a checkpoint of
     an earlier version, which did not keep it; the scripts update it with :func:`wall_time` at
-    each save).
+    each save), and ``starts``: the :func:`provenance` of every start of the run, each with the
+    frame it started from (:func:`start_or_resume` appends it).
 
     Examples:
         >>> new_run(env="Hopper-v4", algo="sail", seed=0, teacher=None)["identity"]
@@ -264,6 +270,7 @@ def new_run(*, env: str, algo: str, seed: int, teacher: str | None) -> dict:
         "config": None,
         "resumes": [],
         "wall_seconds": 0.0,
+        "starts": [],
     }
 
 
@@ -294,6 +301,30 @@ def add_evaluation(run: dict, frames: int, value: float, teacher_return: float) 
         run["passed_teacher_at"] = frames
 
 
+def fall_share(evals: Iterable[tuple[int, float]], teacher_return: float) -> dict | None:
+    """How often a run's evaluations fell below its teacher after it first passed it.
+
+    Counts the evaluations after the first one above ``teacher_return`` (that one excluded) and
+    those of them below ``teacher_return``. ``None`` for a run that never passed its teacher.
+
+    Returns:
+        ``{"share": falls / evaluations (None without any), "falls": ..., "evaluations": ...}``
+
+    Examples:
+        >>> fall_share([(1000, 5.0), (2000, 30.0), (3000, 12.0), (4000, 31.0)], teacher_return=20.0)
+        {'share': 0.5, 'falls': 1, 'evaluations': 2}
+        >>> fall_share([(1000, 5.0)], teacher_return=20.0) is None
+        True
+    """
+    values = [value for _, value in sorted(evals, key=lambda pair: pair[0])]  # (a resumed run's pairs are lists)
+    first = next((i for i, value in enumerate(values) if value > teacher_return), None)
+    if first is None:
+        return None
+    after = values[first + 1 :]
+    falls = sum(value < teacher_return for value in after)
+    return {"share": falls / len(after) if after else None, "falls": falls, "evaluations": len(after)}
+
+
 def start_or_resume(
     checkpoint,
     run_dir: Path,
@@ -304,9 +335,11 @@ def start_or_resume(
     truncate_logs: bool = True,
     config=None,
     may_change: Iterable[str] = RESUME_MAY_CHANGE,
+    code_dir: Path | None = None,
 ) -> None:
-    """Restores ``checkpoint`` from ``run_dir`` when ``resuming`` (:func:`restore_run`), then writes
-    ``config`` (an OmegaConf config) to ``config.yaml``, resolved: the config the run goes on with.
+    """Restores ``checkpoint`` from ``run_dir`` when ``resuming`` (:func:`restore_run`), appends this
+    start's :func:`provenance` (of ``code_dir``) to ``run["starts"]``, then writes ``config`` (an
+    OmegaConf config) to ``config.yaml``, resolved: the config the run goes on with.
 
     ``config`` is also kept in ``run["config"]`` (without its ``resume`` entry), so each
     checkpoint holds the config it was trained with, and a resume is checked against it
@@ -333,6 +366,8 @@ def start_or_resume(
             _place_steps(optimizer)
         if truncate_logs:
             (run_dir / SUMMARY).unlink(missing_ok=True)
+    # every start's code and machine, not only the last one's: a resumed run may span commits
+    run.setdefault("starts", []).append({"frames": run["frames"], **provenance(code_dir)})
     if config is not None:
         run["config"] = current
         OmegaConf.save(config, run_dir / CONFIG, resolve=True)
