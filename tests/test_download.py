@@ -28,11 +28,14 @@ from torchrl_sail.data import (
     paper_teachers_dir,
 )
 from torchrl_sail.data.paper_teachers import (
+    OTHER_TEACHERS,
     PAPER_TEACHERS,
     PAPER_TEACHERS_URL,
+    TEACHER_ENVS,
     TeacherDownloadError,
     _select,
     main,
+    teacher_env,
 )
 
 HOPPER_1 = "expert_data_no_img_Hopper_scores_1500_episodes_1.npz"
@@ -99,6 +102,7 @@ def fake_table(server, monkeypatch):
         (server.folder / name).write_bytes(content)
     table = {name: hashlib.sha256(content).hexdigest() for name, content in FAKE.items()}
     monkeypatch.setattr(paper_teachers, "PAPER_TEACHERS", table)
+    monkeypatch.setattr(paper_teachers, "OTHER_TEACHERS", {})
     return table
 
 
@@ -194,7 +198,7 @@ def test_names_and_patterns():
     with pytest.raises(
         ValueError,
         match=r"no paper teacher file matches 'Hoper\*'; the files are: "
-        r"expert_data_no_img_HalfCheetah",
+        r"expert_data_no_img_Ant",
     ):
         download_paper_teachers(names="Hoper*")
     assert len(PAPER_TEACHERS) == 11
@@ -266,8 +270,69 @@ def test_python_dash_m(tmp_path, monkeypatch, capsys):
         with pytest.raises(SystemExit) as exit_:
             runpy.run_module("torchrl_sail.data.download", run_name="__main__", alter_sys=True)
     assert exit_.value.code == 1  # missing files
+    swimmer_50 = "  (recorded without the time feature (8 columns): it is appended on loading, computed from the steps)"
     assert capsys.readouterr().out.splitlines() == [
-        "missing  expert_data_no_img_Swimmer_scores_120_episodes_1.npz",
-        "missing  expert_data_no_img_Swimmer_scores_120_episodes_4.npz",
+        "missing  expert_data_no_img_Swimmer_scores_120_episodes_1.npz  env=Swimmer-v4",
+        "missing  expert_data_no_img_Swimmer_scores_120_episodes_4.npz  env=Swimmer-v4",
+        "missing  expert_data_no_img_Swimmer_scores_50_episodes_1.npz  env=Swimmer-v4" + swimmer_50,
+        "missing  expert_data_no_img_Swimmer_scores_50_episodes_4.npz  env=Swimmer-v4" + swimmer_50,
         f"folder: {tmp_path}",
     ]
+
+
+def test_every_published_file_names_an_env_with_its_settings():
+    """The 20 files of the authors' folder: each loads into an env this package configures."""
+    assert len({**PAPER_TEACHERS, **OTHER_TEACHERS}) == 20 and not set(PAPER_TEACHERS) & set(OTHER_TEACHERS)
+    conf = Path(__file__).resolve().parents[1] / "conf" / "env"
+    for name in {**PAPER_TEACHERS, **OTHER_TEACHERS}:
+        env, _ = teacher_env(name)
+        assert (conf / f"{env}.yaml").is_file(), name
+    assert {env for env, _ in TEACHER_ENVS.values()} == {
+        f"{env}-v4" for env in ("HalfCheetah", "Hopper", "Walker2d", "Swimmer", "Ant", "Humanoid", "Reacher")
+    }
+    assert teacher_env("teacher_a.npz") is None
+
+
+def test_a_file_pinned_by_its_git_blob_id(server, tmp_path, monkeypatch):
+    """A pin ``git-blob:<sha1>`` is checked as git names the file: SHA-1 of "blob <size>\\0" + content."""
+    content = b"an Ant teacher"
+    # what `git hash-object` prints for this content
+    blob = hashlib.sha1(b"blob 14\0" + content).hexdigest()
+    (server.folder / "teacher_c.npz").write_bytes(content)
+    monkeypatch.setattr(paper_teachers, "PAPER_TEACHERS", {})
+    monkeypatch.setattr(paper_teachers, "OTHER_TEACHERS", {"teacher_c.npz": f"git-blob:{blob}"})
+    (path,) = download_paper_teachers(tmp_path / "dest", "teacher_c.npz", base_url=server.url)
+    assert path.read_bytes() == content and missing_paper_teachers(tmp_path / "dest", "teacher_c.npz") == []
+    (server.folder / "teacher_c.npz").write_bytes(b"another Ant file")
+    with pytest.raises(
+        TeacherDownloadError, match=rf"teacher_c\.npz: git blob id mismatch .* expected git-blob:{blob}"
+    ):
+        download_paper_teachers(tmp_path / "other", "teacher_c.npz", base_url=server.url)
+    assert _files(tmp_path / "other") == []
+
+
+def test_a_refused_published_file_says_why_and_the_same_data_under_another_name_loads(tmp_path):
+    import numpy as np
+
+    t = np.arange(3)
+    obs = np.stack([np.full(3, 0.5), 1 - t / 1000], axis=1).astype("float32")
+    starts = np.empty(3, dtype=object)
+    starts[:] = [True, np.array([False]), np.array([False])]
+    arrays = {
+        "obs": obs,
+        "actions": np.zeros((3, 1), "float32"),
+        "rewards": np.ones((3, 1), "float32"),
+        "episode_returns": np.array([3.0]),
+        "episode_starts": starts,
+    }
+    refused = tmp_path / "expert_data_no_img_Humanoid_scores_500_episodes_1.npz"
+    np.savez(refused, **arrays)
+    with pytest.raises(
+        ValueError,
+        match=r"Humanoid_scores_500_episodes_1\.npz: this published SAIL teacher file is "
+        r"refused: its observations and rewards were recorded normalised",
+    ):
+        load_demonstrations(refused)
+    other = tmp_path / "humanoid_demo.npz"
+    np.savez(other, **arrays)
+    assert load_demonstrations(other).metadata["episode_returns"] == [3.0]

@@ -23,6 +23,7 @@ from torchrl_sail.data.episodes import (
     register_reader,
     resolve_time_feature,
 )
+from torchrl_sail.data.paper_teachers import refused_teacher
 
 __all__ = ["load_sb_demonstrations"]
 
@@ -87,7 +88,9 @@ def load_sb_demonstrations(
         ValueError: unreadable file, missing key, inconsistent shapes, a NaN or infinity
             (naming the key and row), an episode longer than ``max_episode_steps``,
             ``episode_returns`` that are not the sums of ``rewards``, actions outside
-            ``[-1, 1]``, or a last column that is the time feature of another ``T``.
+            ``[-1, 1]``, a last column that is the time feature of another ``T``, or a published
+            SAIL teacher file that no env reproduces (by name, with the reason:
+            :data:`~torchrl_sail.data.paper_teachers.REFUSED_TEACHERS`).
 
     Examples:
         >>> import numpy as np, tempfile, os, torch
@@ -125,6 +128,9 @@ def load_sb_demonstrations(
         raise ValueError(f"max_episode_steps must be >= 1, got {max_episode_steps}.")
     if not path.is_file():
         raise FileNotFoundError(f"demonstration file not found: {path}")
+    refused = refused_teacher(path.name)
+    if refused:
+        raise ValueError(f"{where}: this published SAIL teacher file is refused: {refused}.")
     try:
         # NpzFile, not np.load: np.load(allow_pickle=True) would unpickle a non-zip file.
         with np.lib.npyio.NpzFile(path, allow_pickle=True) as npz:

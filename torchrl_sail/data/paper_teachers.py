@@ -4,18 +4,23 @@ The command line is :mod:`torchrl_sail.data.download` (a separate module, so tha
 ``python -m torchrl_sail.data.download`` does not run a module the package has already imported).
 
 The authors published their sub-optimal teachers as stable-baselines ``.npz`` files in
-`illidanlab/SAIL <https://github.com/illidanlab/SAIL>`_, folder ``teacher_dataset/``. Each file
-is fetched from the raw URL of one pinned commit (:data:`PAPER_TEACHERS_URL`), checked against
-its pinned SHA-256 (:data:`PAPER_TEACHERS`), and written atomically (a temporary file in the
+`illidanlab/SAIL <https://github.com/illidanlab/SAIL>`_, folder ``teacher_dataset/``: the paper's
+four envs (:data:`PAPER_TEACHERS`) and, beside them, Ant, Humanoid, Reacher and a second Swimmer
+teacher (:data:`OTHER_TEACHERS`). Each file is fetched from the raw URL of one pinned commit
+(:data:`PAPER_TEACHERS_URL`), checked against its pin (its SHA-256; for the one file whose content
+was not at hand when it was pinned, its git blob id, ``git-blob:<sha1>``, the SHA-1 that git's
+tree at the pinned commit names it by), and written atomically (a temporary file in the
 destination folder, renamed into place once the checksum matches: a failed or corrupt download
 leaves nothing behind). Files already there with the right checksum are not downloaded again.
+:data:`TEACHER_ENVS` says which env each file loads into, with which settings
+(``conf/env/<env>.yaml``), and what of its recording the env does not reproduce.
 
 The files go to a cache folder, :func:`paper_teachers_dir`: ``$TORCHRL_SAIL_TEACHERS`` if set,
 else ``$XDG_CACHE_HOME/torchrl_sail/teachers``, else ``~/.cache/torchrl_sail/teachers``.
 
 From the command line (``-h`` for the options)::
 
-    python -m torchrl_sail.data.download            # all 11 files, to paper_teachers_dir()
+    python -m torchrl_sail.data.download            # all 20 files, to paper_teachers_dir()
     python -m torchrl_sail.data.download 'expert_data_no_img_Hopper_*' --dest teachers/
     torchrl-sail-teachers --list                     # the console script (pip install -e .)
 
@@ -39,7 +44,10 @@ from collections.abc import Sequence
 from pathlib import Path
 
 __all__ = [
+    "OTHER_TEACHERS",
     "PAPER_TEACHERS",
+    "REFUSED_TEACHERS",
+    "TEACHER_ENVS",
     "PAPER_TEACHERS_COMMIT",
     "PAPER_TEACHERS_URL",
     "TeacherDownloadError",
@@ -47,6 +55,8 @@ __all__ = [
     "main",
     "missing_paper_teachers",
     "paper_teachers_dir",
+    "refused_teacher",
+    "teacher_env",
 ]
 
 logger = logging.getLogger(__name__)
@@ -69,6 +79,48 @@ PAPER_TEACHERS: dict[str, str] = {
     "expert_data_no_img_Walker2d_scores_1500_episodes_10.npz": "5cd964872185e6e7f4978ca97948142764cb32a5d596bb7eefe999c0d91e0e44",
     "expert_data_no_img_Walker2d_scores_1500_episodes_4.npz": "ae2f32d4d9b99b578559f78f6e060a1b84ade13227ffe9f26204557102583b09",
 }
+#: The other files of the same folder and commit, which the paper's experiments do not use.
+OTHER_TEACHERS: dict[str, str] = {
+    "expert_data_no_img_Ant_scores_1200_episodes_1.npz": "cd7ba0cab93676d317883e3e7e8f2bf35d6b38705bf02d72deca6f9218061a20",
+    "expert_data_no_img_Ant_scores_1200_episodes_10.npz": "git-blob:69b03f2e0f7d889f79d10a942517fd47866b32da",
+    "expert_data_no_img_Ant_scores_1200_episodes_4.npz": "3d7a953724764ce19434cc257c48052fe57f6d0b66ee45b8b0895b6e81b1b953",
+    "expert_data_no_img_Humanoid_scores_500_episodes_1.npz": "b24b1f618a74c7ed6b4180e1ec5376c8716e1480c43a9d9b5cb8601d3c34f978",
+    "expert_data_no_img_Humanoid_scores_500_episodes_4.npz": "10ce986d795a21b6710c9147e10236385819d51900dc08a277cea70f31b058a2",
+    "expert_data_no_img_Reacher_scores_-3.6_episodes_1.npz": "4f3f5defaaa43bc865f9e624f31b96b1c22b460609b066b0f1b02d8ac29a8116",
+    "expert_data_no_img_Reacher_scores_-3.6_episodes_4.npz": "a48cb376e2f921de8ce654324245c654798546bf9307b3fd246ef32bac2871da",
+    "expert_data_no_img_Swimmer_scores_50_episodes_1.npz": "408f6c591621c350db6da565779cf2057d86e28135509915bc061cef74d545a6",
+    "expert_data_no_img_Swimmer_scores_50_episodes_4.npz": "016b0ac2e38468eba6558aedd46f48f900319589268afa8e074573fd8caf0c27",
+}
+#: Per file-name prefix (``expert_data_no_img_<Env>_scores_<score>``): the env the files load into
+#: (``env=<env>``, whose ``conf/env`` file holds the authors' settings and env kwargs) and what of
+#: the recording that env does not reproduce ("" where it reproduces every column).
+TEACHER_ENVS: dict[str, tuple[str, str]] = {
+    "expert_data_no_img_HalfCheetah_scores_5600": ("HalfCheetah-v4", ""),
+    "expert_data_no_img_Hopper_scores_1500": ("Hopper-v4", ""),
+    "expert_data_no_img_Walker2d_scores_1500": ("Walker2d-v4", ""),
+    "expert_data_no_img_Swimmer_scores_120": ("Swimmer-v4", ""),
+    "expert_data_no_img_Swimmer_scores_50": (
+        "Swimmer-v4",
+        "recorded without the time feature (8 columns): it is appended on loading, computed from the steps",
+    ),
+    "expert_data_no_img_Ant_scores_1200": (
+        "Ant-v4",
+        "111 columns + the time feature, with contact forces (use_contact_forces=true); columns 27-110, the "
+        "contact forces, are 0.0 in every row (mujoco-py 2.x reported none), where Ant-v4 fills them",
+    ),
+    "expert_data_no_img_Humanoid_scores_500": ("Humanoid-v4", ""),  # refused: REFUSED_TEACHERS
+    "expert_data_no_img_Reacher_scores_-3.6": ("Reacher-v4", "episodes of 50 steps: the time feature is 1 - t/50"),
+}
+#: Per file-name prefix: why those files are refused on loading (no env reproduces their recording).
+REFUSED_TEACHERS: dict[str, str] = {
+    "expert_data_no_img_Humanoid_scores_500": (
+        "its observations and rewards were recorded normalised, which no env reproduces: the torso "
+        "quaternion's first component reads 1.044 (above 1) and the torso height 2.32 at an episode's first "
+        "step, where Humanoid starts near 1.4; the time column runs from 1.41 to -1.11; the rewards are about "
+        "0.04 a step, where Humanoid pays about 5 (returns 4.3-6.4 over episodes of about 105 steps)"
+    ),
+}
+_GIT_BLOB = "git-blob:"
 _ENV_VAR = "TORCHRL_SAIL_TEACHERS"
 _CHUNK = 1 << 16
 
@@ -101,29 +153,64 @@ def paper_teachers_dir() -> Path:
     return (Path(cache).expanduser() if cache else Path.home() / ".cache") / "torchrl_sail" / "teachers"
 
 
-def _select(names: str | Sequence[str] | None) -> list[str]:
-    """The file names of ``names`` (file names or ``fnmatch`` patterns), in table order; all if ``None``."""
+def _published() -> dict[str, str]:
+    """Every published file's pin: the paper's envs', then the others'."""
+    return {**PAPER_TEACHERS, **OTHER_TEACHERS}
+
+
+def teacher_env(name: str) -> tuple[str, str] | None:
+    """The env a published teacher file loads into and what of its recording the env does not
+    reproduce (:data:`TEACHER_ENVS`); ``None`` for another file name.
+
+    Examples:
+        >>> teacher_env("expert_data_no_img_Ant_scores_1200_episodes_4.npz")[0]
+        'Ant-v4'
+    """
+    return TEACHER_ENVS.get(name.rsplit("_episodes_", 1)[0])
+
+
+def refused_teacher(name: str) -> str | None:
+    """Why the published teacher file ``name`` is refused on loading (:data:`REFUSED_TEACHERS`), or ``None``.
+
+    Examples:
+        >>> refused_teacher("expert_data_no_img_Hopper_scores_1500_episodes_1.npz") is None
+        True
+    """
+    return REFUSED_TEACHERS.get(name.rsplit("_episodes_", 1)[0])
+
+
+def _select(names: str | Sequence[str] | None, table: Sequence[str] | None = None) -> list[str]:
+    """The file names of ``names`` (file names or ``fnmatch`` patterns) among ``table`` (default: every
+    published file), in table order; all of ``table`` if ``None``."""
+    table = sorted(_published() if table is None else table)
     if names is None:
-        return sorted(PAPER_TEACHERS)
+        return table
     if isinstance(names, str):
         names = [names]
     selected = []
     for pattern in names:
-        matches = fnmatch.filter(sorted(PAPER_TEACHERS), pattern)
+        matches = fnmatch.filter(table, pattern)
         if not matches:
-            raise ValueError(
-                f"no paper teacher file matches {pattern!r}; the files are: {', '.join(sorted(PAPER_TEACHERS))}."
-            )
+            raise ValueError(f"no paper teacher file matches {pattern!r}; the files are: {', '.join(table)}.")
         selected += [name for name in matches if name not in selected]
     return selected
 
 
-def _sha256(path: Path) -> str:
-    digest = hashlib.sha256()
+def _digest(path: Path, pin: str) -> str:
+    """``path``'s checksum of the kind ``pin`` is: its SHA-256, or for ``git-blob:<sha1>`` its git blob id
+    (``git-blob:`` + the SHA-1 of ``b"blob <size>\\0"`` and the content)."""
+    if pin.startswith(_GIT_BLOB):
+        digest = hashlib.sha1(f"blob {path.stat().st_size}\0".encode(), usedforsecurity=False)
+    else:
+        digest = hashlib.sha256()
     with open(path, "rb") as file:
         for chunk in iter(lambda: file.read(_CHUNK), b""):
             digest.update(chunk)
-    return digest.hexdigest()
+    return (_GIT_BLOB if pin.startswith(_GIT_BLOB) else "") + digest.hexdigest()
+
+
+def _checksum_name(pin: str) -> str:
+    return "git blob id" if pin.startswith(_GIT_BLOB) else "SHA-256"
 
 
 def missing_paper_teachers(
@@ -133,10 +220,11 @@ def missing_paper_teachers(
 
     Args:
         dest: the folder. Defaults to :func:`paper_teachers_dir`.
-        names: file names or ``fnmatch`` patterns (``"*Hopper*"``). Defaults to all files.
+        names: file names or ``fnmatch`` patterns (``"*Hopper*"``) among every published file.
+            Defaults to the files of the paper's four envs (:data:`PAPER_TEACHERS`).
 
     Keyword Args:
-        verify (bool): also count a file whose SHA-256 is not the pinned one. Defaults to ``True``.
+        verify (bool): also count a file whose checksum is not the pinned one. Defaults to ``True``.
 
     Returns:
         list[str]: the missing (or corrupt) file names; empty when all are there.
@@ -144,27 +232,29 @@ def missing_paper_teachers(
     Examples:
         >>> import tempfile
         >>> from torchrl_sail.data import missing_paper_teachers
-        >>> missing_paper_teachers(tempfile.mkdtemp(), "*Swimmer*")
+        >>> missing_paper_teachers(tempfile.mkdtemp(), "*Swimmer_scores_120*")
         ['expert_data_no_img_Swimmer_scores_120_episodes_1.npz', 'expert_data_no_img_Swimmer_scores_120_episodes_4.npz']
     """
     folder = paper_teachers_dir() if dest is None else Path(dest).expanduser()
+    pins = _published()
+    selected = _select(None, PAPER_TEACHERS) if names is None else _select(names)
     return [
         name
-        for name in _select(names)
-        if not (folder / name).is_file() or (verify and _sha256(folder / name) != PAPER_TEACHERS[name])
+        for name in selected
+        if not (folder / name).is_file() or (verify and _digest(folder / name, pins[name]) != pins[name])
     ]
 
 
 def _download(url: str, target: Path, expected: str, timeout: float) -> None:
-    """Streams ``url`` to a temporary file beside ``target``, checks its SHA-256, renames it into place."""
+    """Streams ``url`` to a temporary file beside ``target``, checks it against the pin ``expected``,
+    renames it into place."""
     partial = target.with_name(f".{target.name}.{uuid.uuid4().hex[:8]}.part")
-    digest, size, announced = hashlib.sha256(), 0, None
+    size, announced = 0, None
     try:
         try:
             with urllib.request.urlopen(url, timeout=timeout) as response, open(partial, "wb") as file:
                 announced = response.headers.get("Content-Length")
                 for chunk in iter(lambda: response.read(_CHUNK), b""):
-                    digest.update(chunk)
                     file.write(chunk)
                     size += len(chunk)
                 file.flush()
@@ -182,10 +272,11 @@ def _download(url: str, target: Path, expected: str, timeout: float) -> None:
             raise TeacherDownloadError(
                 f"{target.name}: download from {url} cut off after {size} of {announced} bytes; nothing was written."
             )
-        got = digest.hexdigest()
+        got = _digest(partial, expected)
         if got != expected:
             raise TeacherDownloadError(
-                f"{target.name}: SHA-256 mismatch for {url}: expected {expected}, got {got}; nothing was written."
+                f"{target.name}: {_checksum_name(expected)} mismatch for {url}: expected {expected}, got {got}; "
+                f"nothing was written."
             )
         os.replace(partial, target)
     finally:
@@ -199,19 +290,19 @@ def download_paper_teachers(
     base_url: str = PAPER_TEACHERS_URL,
     timeout: float = 60.0,
 ) -> list[Path]:
-    """Downloads the SAIL authors' teacher ``.npz`` files (pinned commit, checked SHA-256).
+    """Downloads the SAIL authors' teacher ``.npz`` files (pinned commit, checked checksum).
 
     Each file is fetched from ``base_url + name`` (by default the raw URL of
     ``illidanlab/SAIL`` at :data:`PAPER_TEACHERS_COMMIT`, folder ``teacher_dataset/``),
-    streamed to a temporary file in ``dest`` and renamed into place only if its SHA-256 is the
-    pinned one of :data:`PAPER_TEACHERS`: a failed or corrupt download leaves no file (and an
-    existing one untouched). A file already in ``dest`` with the right SHA-256 is not
-    downloaded again; one with another is replaced.
+    streamed to a temporary file in ``dest`` and renamed into place only if its checksum is the
+    pinned one of :data:`PAPER_TEACHERS` or :data:`OTHER_TEACHERS`: a failed or corrupt download
+    leaves no file (and an existing one untouched). A file already in ``dest`` with the right
+    checksum is not downloaded again; one with another is replaced.
 
     Args:
         dest: the folder to put them in, created if needed. Defaults to
             :func:`paper_teachers_dir` (``$TORCHRL_SAIL_TEACHERS``, else the user cache).
-        names: file names or ``fnmatch`` patterns (``"*Hopper*"``). Defaults to all 11 files.
+        names: file names or ``fnmatch`` patterns (``"*Hopper*"``). Defaults to all 20 published files.
 
     Keyword Args:
         base_url (str): the folder URL the names are appended to, e.g. a mirror
@@ -247,18 +338,19 @@ def download_paper_teachers(
     folder = paper_teachers_dir() if dest is None else Path(dest).expanduser()
     folder.mkdir(parents=True, exist_ok=True)
     base_url = base_url if base_url.endswith("/") else base_url + "/"
-    paths = []
+    paths, pins = [], _published()
     for name in selected:
-        target, expected = folder / name, PAPER_TEACHERS[name]
-        if target.is_file() and _sha256(target) == expected:
-            logger.info("%s: already in %s (SHA-256 ok)", name, folder)
+        target, expected = folder / name, pins[name]
+        checksum = _checksum_name(expected)
+        if target.is_file() and _digest(target, expected) == expected:
+            logger.info("%s: already in %s (%s ok)", name, folder, checksum)
         else:
             if target.exists():
-                logger.warning("%s: %s has another SHA-256; downloading it again", name, target)
+                logger.warning("%s: %s has another %s; downloading it again", name, target, checksum)
             url = base_url + urllib.parse.quote(name)
             logger.info("%s: downloading %s", name, url)
             _download(url, target, expected, timeout)
-            logger.info("%s: written to %s (SHA-256 ok)", name, target)
+            logger.info("%s: written to %s (%s ok)", name, target, checksum)
         paths.append(target)
     return paths
 
@@ -275,14 +367,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     parser = argparse.ArgumentParser(
         prog="torchrl-sail-teachers",
-        description="Download the SAIL paper's teacher demonstrations (illidanlab/SAIL at commit "
-        f"{PAPER_TEACHERS_COMMIT[:12]}), checking each file's pinned SHA-256.",
+        description="Download the SAIL authors' teacher demonstrations (illidanlab/SAIL at commit "
+        f"{PAPER_TEACHERS_COMMIT[:12]}), checking each file's pinned checksum.",
     )
     parser.add_argument("names", nargs="*", help="file names or patterns, e.g. '*Hopper*' (default: all)")
     parser.add_argument("--dest", help=f"folder (default: ${_ENV_VAR}, else ~/.cache/torchrl_sail/teachers)")
     parser.add_argument("--base-url", default=PAPER_TEACHERS_URL, help="where to download from (a mirror)")
     parser.add_argument("--timeout", type=float, default=60.0, help="seconds per request (default: 60)")
-    parser.add_argument("--list", action="store_true", help="list the files and whether they are in --dest")
+    parser.add_argument(
+        "--list", action="store_true", help="list the files, the env each loads into, and whether they are in --dest"
+    )
     args = parser.parse_args(argv)
     folder = paper_teachers_dir() if args.dest is None else Path(args.dest).expanduser()
     try:
@@ -290,7 +384,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.list:
             missing = set(missing_paper_teachers(folder, names))
             for name in names:
-                print(f"{'missing' if name in missing else 'ok     '}  {name}")
+                env, note = teacher_env(name) or (None, "")
+                note = f"refused on loading: {refused_teacher(name)}" if refused_teacher(name) else note
+                print(
+                    f"{'missing' if name in missing else 'ok     '}  {name}"
+                    + (f"  env={env}" if env else "")
+                    + (f"  ({note})" if note else "")
+                )
             print(f"folder: {folder}")
             return 1 if missing else 0
         handler = logging.StreamHandler(sys.stderr)

@@ -1,0 +1,143 @@
+"""Falls after a run passed its teacher: the online actor against its target actor, and what the logs
+show in the frames before each evaluation that fell.
+
+    python benchmarks/falls.py <run folder> [<run folder> ...] [--out falls.md]
+
+A run folder is a live run (``logs/scalars/``) or a results copy (``scalars.csv``) with a
+``summary.json`` (its teacher's return) whose evaluations logged both actors: ``eval/return`` and
+``eval/return_target`` or ``eval/return_online`` (``eval.other_actor=true``). Per run: the fall share
+of each actor (:func:`torchrl_sail.runs.fall_share`, counted from the first evaluation where the
+*online* actor passed the teacher), and how often one fell where the other did not. Then, pooled
+over the runs, each diagnostic averaged over the ``--window`` frames before an evaluation, at the
+online actor's falls against its other evaluations after passing: ``actor/change`` and
+``actor/target_gap`` (how far a TD3 block moves the actor, how far it is from the target actor),
+``sail/q_mean``, ``sail/d_reward_mean``, ``train/dense_return`` and the trajectories promoted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+from pathlib import Path
+
+from torchrl_sail.runs import fall_share, read_scalar, write_atomic
+
+DIAGNOSTICS = (
+    "actor/change",
+    "actor/target_gap",
+    "sail/q_mean",
+    "sail/d_reward_mean",
+    "train/dense_return",
+)
+PROMOTED = "teacher/num_promoted"
+
+
+def actors(folder: Path) -> dict[str, dict[int, float]]:
+    """The run's evaluations by actor, ``{"online": {frames: return}, "target": {...}}``."""
+    summary = json.loads((folder / "summary.json").read_text())
+    evaluated = summary.get("evaluated_actor", "online")
+    other = "online" if evaluated == "target" else "target"
+    curves = {
+        evaluated: dict(read_scalar(folder, "eval/return")),
+        other: dict(read_scalar(folder, f"eval/return_{other}")),
+    }
+    if not curves[other]:
+        raise ValueError(f"{folder}: no eval/return_{other}: the run did not evaluate both actors (eval.other_actor)")
+    return curves
+
+
+def window_mean(series: list[tuple[int, float]], start: int, end: int) -> float | None:
+    values = [value for frames, value in series if start < frames <= end]
+    return statistics.fmean(values) if values else None
+
+
+def last_at(series: list[tuple[int, float]], frames: int) -> float:
+    values = [value for at, value in series if at <= frames]
+    return values[-1] if values else 0.0
+
+
+def run_rows(folder: Path, window: int) -> tuple[dict, list[dict]]:
+    """The run's summary line and one row per online evaluation after its first pass."""
+    teacher = json.loads((folder / "summary.json").read_text())["teacher_return"]
+    curves = actors(folder)
+    online, target = curves["online"], curves["target"]
+    frames = sorted(set(online) & set(target))
+    share = {name: fall_share([(f, curves[name][f]) for f in frames], teacher) for name in ("online", "target")}
+    first = next((f for f in frames if online[f] > teacher), None)
+    after = [] if first is None else [f for f in frames if f > first]
+    series = {tag: read_scalar(folder, tag) for tag in (*DIAGNOSTICS, PROMOTED)}
+    rows = []
+    for f in after:
+        row = {"fell": online[f] < teacher, "target_fell": target[f] < teacher}
+        for tag in DIAGNOSTICS:
+            row[tag] = window_mean(series[tag], f - window, f)
+        row["promoted"] = last_at(series[PROMOTED], f) - last_at(series[PROMOTED], f - window)
+        rows.append(row)
+    line = {
+        "run": str(folder),
+        "teacher": teacher,
+        "passed_at": first,
+        "online": share["online"],
+        "target": share["target"],
+        "online_only": sum(r["fell"] and not r["target_fell"] for r in rows),
+        "target_only": sum(r["target_fell"] and not r["fell"] for r in rows),
+    }
+    return line, rows
+
+
+def shown(share: dict | None) -> str:
+    if share is None or share["share"] is None:
+        return "n/a"
+    return f"{100 * share['share']:.1f}% ({share['falls']}/{share['evaluations']})"
+
+
+def mean_of(rows: list[dict], key: str) -> str:
+    values = [row[key] for row in rows if row[key] is not None]
+    return f"{statistics.fmean(values):.4g} (n={len(values)})" if values else "-"
+
+
+def report(folders: list[Path], window: int) -> str:
+    lines = [
+        "| run | teacher | passed at | fall share: online actor | target actor "
+        "| online fell alone | target fell alone |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    pooled = []
+    for folder in folders:
+        line, rows = run_rows(folder, window)
+        pooled += rows
+        lines.append(
+            f"| `{line['run']}` | {line['teacher']:.1f} | {line['passed_at'] or '-'} | {shown(line['online'])} "
+            f"| {shown(line['target'])} | {line['online_only']} | {line['target_only']} |"
+        )
+    fell = [row for row in pooled if row["fell"]]
+    held = [row for row in pooled if not row["fell"]]
+    lines += [
+        "",
+        f"Over the {window}-frame window before each evaluation after the online actor passed: at its "
+        f"{len(fell)} falls against its {len(held)} other evaluations.",
+        "",
+        "| diagnostic | before a fall | before the others |",
+        "|---|---|---|",
+    ]
+    lines += [f"| `{key}` | {mean_of(fell, key)} | {mean_of(held, key)} |" for key in (*DIAGNOSTICS, "promoted")]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("runs", nargs="+", type=Path)
+    parser.add_argument("--window", type=int, default=10_000, help="frames before an evaluation (default: 10000)")
+    parser.add_argument("--out", type=Path)
+    args = parser.parse_args(argv)
+    text = report(args.runs, args.window)
+    print(text)
+    if args.out:
+        write_atomic(args.out, text + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,56 @@
+"""``benchmarks/falls.py``: both actors' falls and the logs before them, on a hand-made run folder."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from benchmark_scripts import load_benchmark
+
+falls = load_benchmark("falls")
+
+
+def write_run(folder, rows, evaluated="target"):
+    folder.mkdir(parents=True)
+    (folder / "summary.json").write_text(json.dumps({"teacher_return": 100.0, "evaluated_actor": evaluated}))
+    lines = ["tag,frames,value"] + [f"{tag},{frames},{value}" for tag, frames, value in rows]
+    (folder / "scalars.csv").write_text("\n".join(lines) + "\n")
+
+
+def rows(online_tag="eval/return_online", target_tag="eval/return"):
+    online = {10_000: 50, 20_000: 150, 30_000: 40, 40_000: 160, 50_000: 30}
+    target = {10_000: 50, 20_000: 140, 30_000: 120, 40_000: 150, 50_000: 90}
+    return [
+        *((online_tag, f, v) for f, v in online.items()),
+        *((target_tag, f, v) for f, v in target.items()),
+        *(("actor/change", f, v) for f, v in {25_000: 0.5, 35_000: 0.1, 45_000: 0.9}.items()),
+        *(("teacher/num_promoted", f, v) for f, v in {15_000: 1, 25_000: 3, 45_000: 6}.items()),
+    ]
+
+
+def test_falls_of_both_actors_and_the_logs_before_them(tmp_path):
+    write_run(tmp_path / "run", rows())
+    line, after = falls.run_rows(tmp_path / "run", window=10_000)
+    # the online actor passed at 20k; after it 40 and 30 fell of (40, 160, 30); the target: 90 of (120, 150, 90)
+    assert line["passed_at"] == 20_000
+    assert line["online"] == {"share": 2 / 3, "falls": 2, "evaluations": 3}
+    assert line["target"] == {"share": 1 / 3, "falls": 1, "evaluations": 3}
+    assert (line["online_only"], line["target_only"]) == (1, 0)  # 30k: online alone; 50k: both
+    assert [row["fell"] for row in after] == [True, False, True]
+    assert [row["actor/change"] for row in after] == [0.5, 0.1, 0.9]
+    assert [row["promoted"] for row in after] == [2, 0, 3]  # 3 - 1, 3 - 3, 6 - 3
+    text = falls.report([tmp_path / "run"], window=10_000)
+    assert "| 66.7% (2/3) | 33.3% (1/3) | 1 | 0 |" in text
+    assert "| `actor/change` | 0.7 (n=2) | 0.1 (n=1) |" in text and "| `promoted` | 2.5 (n=2) | 0 (n=1) |" in text
+
+
+def test_a_run_that_evaluated_the_online_actor_reads_its_target_actor_as_the_other(tmp_path):
+    write_run(tmp_path / "run", rows("eval/return", "eval/return_target"), evaluated="online")
+    line, _ = falls.run_rows(tmp_path / "run", window=10_000)
+    assert line["online"]["falls"] == 2 and line["target"]["falls"] == 1
+
+
+def test_a_run_with_one_actor_evaluated_is_refused(tmp_path):
+    write_run(tmp_path / "run", [("eval/return", 10_000, 50.0)])
+    with pytest.raises(ValueError, match="no eval/return_online: the run did not evaluate both actors"):
+        falls.run_rows(tmp_path / "run", window=10_000)
