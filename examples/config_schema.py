@@ -42,6 +42,7 @@ RewardSource = Choice("RewardSource", {name: name for name in ("discriminator", 
 RewardKind = Choice("RewardKind", {name: name for name in ("gail", "airl")})
 AbsorbingAction = Choice("AbsorbingAction", {name: name for name in ("zero", "random")})
 Eviction = Choice("Eviction", {name: name for name in ("topk", "union", "fifo")})
+ColumnCheck = Choice("ColumnCheck", {name: name for name in ("warn", "error", "off")})
 Implementation = Choice("Implementation", {name: name for name in ("fused", "loss")})
 Precision = Choice("Precision", {name: name for name in ("fp32", "bf16")})
 # a TD3 learner's actor (online: the one the TD3 step trains) or its target actor (the Polyak
@@ -302,6 +303,16 @@ class TeacherConfig:
     #   fifo:  a ring of `capacity` transitions (the authors' code)
     eviction: Eviction = Eviction.topk
     capacity: int = II("env.teacher_capacity")  # ring size for eviction=fifo
+    # The teacher's observation columns to keep or to drop (one of the two), e.g. drop_columns=27-110:
+    # comma-separated indices and ranges of the file's columns (the time feature included), quoted on
+    # Hydra's command line where there is a comma ('0-26,111'); the env must produce the same columns
+    # (e.g. env.kwargs.use_contact_forces=false for Ant's 27)
+    keep_columns: Optional[str] = None
+    drop_columns: Optional[str] = None
+    # Before training, a random rollout of the env names the teacher's columns it does not reproduce
+    # (constant in the teacher where the env varies, or far outside the env's range): warn | error | off
+    column_check: ColumnCheck = ColumnCheck.warn
+    column_check_steps: int = 200
 
 
 @dataclass
@@ -493,6 +504,7 @@ def check_config(cfg: DictConfig) -> None:
         ("optim.discriminator.batch_size", d.batch_size, 1),
         ("env.replay_size", cfg.env.replay_size, 1),
         ("eval.episodes", cfg.eval.episodes, 1),
+        ("teacher.column_check_steps", cfg.teacher.column_check_steps, 1),
         ("eval.best_policy.every_frames", cfg.eval.best_policy.every_frames, 1),
         ("eval.best_policy.window", cfg.eval.best_policy.window, 1),
         ("eval.best_policy.episodes", cfg.eval.best_policy.episodes, 0),
@@ -550,6 +562,12 @@ def check_config(cfg: DictConfig) -> None:
             str(cfg.eval.actor),
             cfg.eval.actor == EvaluatedActor.online or cfg.algo.learner == "td3",
             "target is TD3's (algo.learner=td3): only a TD3 learner keeps a target actor",
+        ),
+        (
+            "teacher.drop_columns",
+            cfg.teacher.drop_columns,
+            cfg.teacher.drop_columns is None or cfg.teacher.keep_columns is None,
+            "and teacher.keep_columns are two ways to say one thing: give one of them",
         ),
         (
             "eval.other_actor",

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import copy
 import math
+import warnings
 from functools import partial
 from pathlib import Path
 
@@ -55,6 +56,9 @@ from torchrl_sail import (
     make_sail_env,
     observation_normalizer,
 )
+from torchrl_sail.data import keep_columns, parse_columns, unreproduced_columns
+from torchrl_sail.data.columns import column_ranges
+from torchrl_sail.data.paper_teachers import teacher_env
 
 # Teachers made by examples/make_teacher.py, one small dataset per env, shipped with the repo.
 TEACHERS_DIR = Path(__file__).resolve().parent / "teachers"
@@ -181,6 +185,8 @@ def make_teacher(cfg: DictConfig, env, absorbing: AbsorbingStateTransform | None
     # The env appends the time feature: a file recorded without it gets it computed from the
     # episode steps ("minari:<id>" survives Path: load_demonstrations reads it).
     demos, meta = load_demonstrations(path, max_episode_steps=cfg.env.max_episode_steps, time_feature=True)
+    demos = select_teacher_columns(cfg, demos)
+    check_teacher_columns(cfg, demos["observation"], path)
     # The buffer ranks trajectories by r_e (floor(0.1 R) by default), the only reward the learner
     # sees: the demonstrations' is computed as the env computes the agent's.
     demos = DelayedRewardTransform(rounding=str(cfg.env.reward_rounding)).forward(demos).select(*TRANSITION_KEYS)
@@ -202,6 +208,70 @@ def make_teacher(cfg: DictConfig, env, absorbing: AbsorbingStateTransform | None
     buffer = TeacherReplayBuffer(writer, device=cfg.device)
     buffer.add_demonstrations(demos)
     return buffer, float(max(meta["episode_returns"])), str(path)
+
+
+def select_teacher_columns(cfg: DictConfig, demos):
+    """The demonstrations with only the observation columns ``teacher.keep_columns`` names, or without
+    those ``teacher.drop_columns`` names (both count the file's columns, the time feature included)."""
+    t, width = cfg.teacher, demos["observation"].shape[-1]
+    if t.keep_columns is not None:
+        return keep_columns(demos, parse_columns(t.keep_columns, width, key="teacher.keep_columns"))
+    if t.drop_columns is not None:
+        dropped = set(parse_columns(t.drop_columns, width, key="teacher.drop_columns"))
+        return keep_columns(demos, [column for column in range(width) if column not in dropped])
+    return demos
+
+
+def check_teacher_columns(cfg: DictConfig, teacher_observations: torch.Tensor, source) -> None:
+    """Names, before training, the teacher's observation columns the env does not reproduce
+    (:func:`~torchrl_sail.data.unreproduced_columns` against a random rollout of ``teacher.column_check_steps``
+    steps, on an env of its own: the training env's stream is untouched), with the choices;
+    ``teacher.column_check`` says whether to warn, to stop, or not to look."""
+    if cfg.teacher.column_check == "off":
+        return
+    env = make_env(cfg, cfg.seed + 40_000)
+    rollout = env.rollout(cfg.teacher.column_check_steps, break_when_any_done=False)
+    env.close()
+    env_observations = rollout["observation"].reshape(-1, rollout["observation"].shape[-1])
+    # episode ids: a column the env holds constant through each episode (a goal) is reproduced
+    done = rollout["next", "done"].reshape(-1).long()
+    episodes = torch.cumsum(done, 0) - done
+    width = teacher_observations.shape[-1]
+    if cfg.algo.absorbing_state:  # DAC's env appends the absorbing indicator, the demonstrations get it later
+        env_observations = env_observations[..., :-1]
+    if env_observations.shape[-1] != width:  # check_demonstration_dims says why, next
+        return
+    found = unreproduced_columns(teacher_observations.reshape(-1, width), env_observations, env_episodes=episodes)
+    if not found:
+        return
+    lines = [
+        f"teacher {source}: {len(found)} of its {width} observation columns are not what {cfg.env.name} "
+        f"produces (a random rollout of {cfg.teacher.column_check_steps} steps), so the discriminator can tell "
+        f"the teacher's rows from the agent's by them alone:"
+    ]
+    for kind, what in (("constant", "constant in the teacher, varying in the env"), ("outside", "far outside")):
+        columns = [c for c in found if c["kind"] == kind]
+        if columns:
+            t, e = columns[0]["teacher"], columns[0]["env"]
+            lines.append(
+                f"  columns {column_ranges([c['column'] for c in columns])}: {what} (column {columns[0]['column']}: "
+                f"teacher {t[0]:.3g} to {t[1]:.3g}, env {e[0]:.3g} to {e[1]:.3g})"
+            )
+    published = teacher_env(Path(str(source)).name)
+    if published is not None and published[1]:
+        lines.append(f"  (the authors' {published[0]} files: {published[1]})")
+    lines.append(
+        "A random rollout shows these; columns constant in both may still part once the agent moves otherwise."
+    )
+    lines.append(
+        f"Choices: train as it is (teacher.column_check=off hides this, =error stops here), or drop them with "
+        f"teacher.drop_columns='{column_ranges([c['column'] for c in found])}' and make the env produce the columns "
+        f"kept (e.g. env.kwargs.use_contact_forces=false for Ant's contact forces)."
+    )
+    message = "\n".join(lines)
+    if cfg.teacher.column_check == "error":
+        raise ValueError(message)
+    warnings.warn(message, UserWarning, stacklevel=2)
 
 
 def make_replay(size: int, device: str) -> TensorDictReplayBuffer:

@@ -2,6 +2,7 @@
 (the paper's ``.npz``, the project's folders, Minari datasets) and the download of the paper's
 teacher files."""
 
+from torchrl_sail.data.columns import keep_columns, parse_columns, unreproduced_columns
 from torchrl_sail.data.demonstrations import (
     Demonstrations,
     check_demonstration_dims,
@@ -39,10 +40,13 @@ __all__ = [
     "check_demonstration_dims",
     "download_paper_teachers",
     "export_minari_dataset",
+    "keep_columns",
     "load_demonstrations",
     "load_minari_demonstrations",
     "load_sb_demonstrations",
     "missing_paper_teachers",
     "paper_teachers_dir",
+    "parse_columns",
     "save_demonstrations",
+    "unreproduced_columns",
 ]

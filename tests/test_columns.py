@@ -1,0 +1,122 @@
+"""Teacher observation columns: which the env does not reproduce (named before training), and the
+columns kept or dropped (``torchrl_sail.data.columns`` and ``teacher.*_columns``)."""
+
+from __future__ import annotations
+
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from tensordict import TensorDict
+
+from torchrl_sail.data import keep_columns, parse_columns, unreproduced_columns
+from torchrl_sail.data.columns import column_ranges
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
+
+
+@pytest.mark.parametrize(
+    ("spec", "expected"), [("3", [3]), ("27-29,5", [5, 27, 28, 29]), (" 0-1 , 1-2 ", [0, 1, 2]), ("111", [111])]
+)
+def test_parse_columns(spec, expected):
+    assert parse_columns(spec, width=112) == expected
+    assert parse_columns(column_ranges(expected), width=112) == expected
+
+
+@pytest.mark.parametrize(
+    ("spec", "match"),
+    [
+        ("27-112", r"teacher.drop_columns='27-112': '27-112' is not a range of columns 0-111 \(the teacher's 112\)"),
+        ("5-3", r"'5-3' is not a range of columns"),
+        ("a", r"'a' is not an index or a range like 27-110"),
+        ("1,,2", r"'' is not an index"),
+    ],
+)
+def test_parse_columns_names_the_key_and_the_bad_item(spec, match):
+    with pytest.raises(ValueError, match=match):
+        parse_columns(spec, width=112, key="teacher.drop_columns")
+
+
+def test_keep_columns_applies_to_both_observations_and_leaves_the_input():
+    obs = torch.arange(12.0).reshape(3, 4)
+    data = TensorDict({"observation": obs, "action": torch.zeros(3, 1), "next": {"observation": obs + 100}}, [3])
+    kept = keep_columns(data, [0, 3])
+    assert kept["observation"].tolist() == [[0, 3], [4, 7], [8, 11]]
+    assert kept["next", "observation"].tolist() == [[100, 103], [104, 107], [108, 111]]
+    assert data["observation"].shape == (3, 4) and data["next", "observation"].shape == (3, 4)
+
+
+def test_unreproduced_columns_by_hand():
+    teacher = torch.tensor([[0.0, 1.0, 500.0, 7.0, 12.0], [0.0, 2.0, 501.0, 7.0, 20.0]])
+    env = torch.tensor([[0.3, 1.5, 0.0, 7.0, 0.0], [-0.2, 2.5, 1.0, 7.0, 1.0]])
+    found = unreproduced_columns(teacher, env)
+    # 0: constant 0 in the teacher, -0.2..0.3 in the env; 2: 499 above an env range of 1 (> 10 x 1);
+    # 1: overlaps; 3: constant in both; 4: its nearest value, 12, is 11 env ranges above the env's 1
+    assert [(c["column"], c["kind"]) for c in found] == [(0, "constant"), (2, "outside"), (4, "outside")]
+    assert found[0]["teacher"] == (0.0, 0.0) and found[0]["env"] == pytest.approx((-0.2, 0.3))
+    assert unreproduced_columns(teacher, env, far=20.0)[-1]["column"] == 2  # 11 < 20 ranges: column 4 is not
+
+
+def _hopper_teacher(path, constant_column=5, steps=50):
+    """A Hopper-v4 teacher file in the paper's format, one column held at 0.0."""
+    rng = np.random.default_rng(0)
+    t = np.arange(steps)
+    obs = np.concatenate([rng.normal(size=(steps, 11)), (1 - t / 1000)[:, None]], axis=1).astype("float32")
+    obs[:, constant_column] = 0.0
+    starts = np.empty(steps, dtype=object)
+    starts[:] = [True] + [np.array([False])] * (steps - 1)
+    np.savez(
+        path,
+        obs=obs,
+        actions=rng.uniform(-1, 1, size=(steps, 3)).astype("float32"),
+        rewards=np.ones((steps, 1), "float32"),
+        episode_returns=np.array([float(steps)]),
+        episode_starts=starts,
+    )
+    return path
+
+
+def _make(*overrides):
+    from test_config import make
+
+    return make("env=Hopper-v4", *overrides)
+
+
+def test_make_teacher_names_the_columns_the_env_does_not_reproduce(tmp_path):
+    from utils import make_env, make_teacher
+
+    path = _hopper_teacher(tmp_path / "teacher.npz")
+    cfg = _make(f"teacher.path={path}")
+    env = make_env(cfg, 0)
+    with pytest.warns(UserWarning, match=r"1 of its 12 observation columns are not what Hopper-v4 produces") as record:
+        make_teacher(cfg, env)
+    message = str(record[0].message)
+    assert "columns 5: constant in the teacher, varying in the env (column 5: teacher 0 to 0" in message
+    assert "teacher.drop_columns='5' " in message
+    with pytest.raises(ValueError, match=r"1 of its 12 observation columns"):
+        make_teacher(_make(f"teacher.path={path}", "teacher.column_check=error"), env)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        make_teacher(_make(f"teacher.path={path}", "teacher.column_check=off"), env)
+
+
+def test_dropped_columns_must_match_the_env(tmp_path):
+    from utils import make_env, make_teacher
+
+    path = _hopper_teacher(tmp_path / "teacher.npz")
+    cfg = _make(f"teacher.path={path}", "teacher.drop_columns=5", "teacher.column_check=off")
+    with pytest.raises(ValueError, match=r"'observation' has 11 dims, env has 12"):
+        make_teacher(cfg, make_env(cfg, 0))
+    cfg = _make(f"teacher.path={path}", "teacher.keep_columns='0-4,6-11'")  # the same 11 of 12 columns
+    with pytest.raises(ValueError, match=r"'observation' has 11 dims, env has 12"):
+        make_teacher(cfg, make_env(cfg, 0))
+
+
+def test_keep_and_drop_together_are_refused():
+    from config_schema import check_config
+
+    with pytest.raises(ValueError, match=r"teacher.drop_columns='5': and teacher.keep_columns are two ways"):
+        check_config(_make("teacher.drop_columns=5", "teacher.keep_columns=0-4"))
