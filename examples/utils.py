@@ -230,7 +230,9 @@ def check_teacher_columns(cfg: DictConfig, teacher_observations: torch.Tensor, s
     if cfg.teacher.column_check == "off":
         return
     env = make_env(cfg, cfg.seed + 40_000)
-    rollout = env.rollout(cfg.teacher.column_check_steps, break_when_any_done=False)
+    with torch.random.fork_rng(devices=[]):  # random actions that leave the run's own random stream as it was
+        torch.manual_seed(cfg.seed + 40_000)
+        rollout = env.rollout(cfg.teacher.column_check_steps, break_when_any_done=False)
     env.close()
     env_observations = rollout["observation"].reshape(-1, rollout["observation"].shape[-1])
     # episode ids: a column the env holds constant through each episode (a goal) is reproduced

@@ -120,3 +120,16 @@ def test_keep_and_drop_together_are_refused():
 
     with pytest.raises(ValueError, match=r"teacher.drop_columns='5': and teacher.keep_columns are two ways"):
         check_config(_make("teacher.drop_columns=5", "teacher.keep_columns=0-4"))
+
+
+def test_the_column_check_leaves_the_runs_random_stream_as_it_was(tmp_path):
+    from utils import check_teacher_columns
+
+    path = _hopper_teacher(tmp_path / "teacher.npz", constant_column=0)
+    cfg = _make(f"teacher.path={path}")
+    torch.manual_seed(7)
+    expected = torch.rand(3)
+    torch.manual_seed(7)
+    with pytest.warns(UserWarning):
+        check_teacher_columns(cfg, torch.zeros(5, 12), path)
+    assert torch.equal(torch.rand(3), expected)
