@@ -3,8 +3,9 @@ show in the frames before each evaluation that fell.
 
     python benchmarks/falls.py <run folder> [<run folder> ...] [--out falls.md]
 
-A run folder is a live run (``logs/scalars/``) or a results copy (``scalars.csv``) with a
-``summary.json`` (its teacher's return) whose evaluations logged both actors: ``eval/return`` and
+A run folder is a live run (``logs/scalars/``) or a results copy (``scalars.csv``) with its
+``config.yaml`` and, once finished, its ``summary.json`` (its teacher's return; for an unfinished
+run, ``--teacher-return``), whose evaluations logged both actors: ``eval/return`` and
 ``eval/return_target`` or ``eval/return_online`` (``eval.other_actor=true``). Per run: the fall share
 of each actor (:func:`torchrl_sail.runs.fall_share`, counted from the first evaluation where the
 *online* actor passed the teacher), and how often one fell where the other did not. Then, pooled
@@ -22,6 +23,8 @@ import statistics
 import sys
 from pathlib import Path
 
+import yaml
+
 from torchrl_sail.runs import fall_share, read_scalar, write_atomic
 
 DIAGNOSTICS = (
@@ -36,8 +39,8 @@ PROMOTED = "teacher/num_promoted"
 
 def actors(folder: Path) -> dict[str, dict[int, float]]:
     """The run's evaluations by actor, ``{"online": {frames: return}, "target": {...}}``."""
-    summary = json.loads((folder / "summary.json").read_text())
-    evaluated = summary.get("evaluated_actor", "online")
+    config = yaml.safe_load((folder / "config.yaml").read_text())
+    evaluated = (config.get("eval") or {}).get("actor", "online")  # a run of an earlier version: online
     other = "online" if evaluated == "target" else "target"
     curves = {
         evaluated: dict(read_scalar(folder, "eval/return")),
@@ -58,9 +61,18 @@ def last_at(series: list[tuple[int, float]], frames: int) -> float:
     return values[-1] if values else 0.0
 
 
-def run_rows(folder: Path, window: int) -> tuple[dict, list[dict]]:
+def teacher_return(folder: Path, given: float | None) -> float:
+    """The run's teacher return: its ``summary.json``'s, else ``given`` (an unfinished run)."""
+    if (folder / "summary.json").exists():
+        return json.loads((folder / "summary.json").read_text())["teacher_return"]
+    if given is None:
+        raise ValueError(f"{folder}: no summary.json (an unfinished run): give its teacher's return, --teacher-return")
+    return given
+
+
+def run_rows(folder: Path, window: int, given_teacher: float | None = None) -> tuple[dict, list[dict]]:
     """The run's summary line and one row per online evaluation after its first pass."""
-    teacher = json.loads((folder / "summary.json").read_text())["teacher_return"]
+    teacher = teacher_return(folder, given_teacher)
     curves = actors(folder)
     online, target = curves["online"], curves["target"]
     frames = sorted(set(online) & set(target))
@@ -98,7 +110,7 @@ def mean_of(rows: list[dict], key: str) -> str:
     return f"{statistics.fmean(values):.4g} (n={len(values)})" if values else "-"
 
 
-def report(folders: list[Path], window: int) -> str:
+def report(folders: list[Path], window: int, given_teacher: float | None = None) -> str:
     lines = [
         "| run | teacher | passed at | fall share: online actor | target actor "
         "| online fell alone | target fell alone |",
@@ -106,7 +118,7 @@ def report(folders: list[Path], window: int) -> str:
     ]
     pooled = []
     for folder in folders:
-        line, rows = run_rows(folder, window)
+        line, rows = run_rows(folder, window, given_teacher)
         pooled += rows
         lines.append(
             f"| `{line['run']}` | {line['teacher']:.1f} | {line['passed_at'] or '-'} | {shown(line['online'])} "
@@ -130,9 +142,10 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("runs", nargs="+", type=Path)
     parser.add_argument("--window", type=int, default=10_000, help="frames before an evaluation (default: 10000)")
+    parser.add_argument("--teacher-return", type=float, help="the teacher's return of runs without a summary.json")
     parser.add_argument("--out", type=Path)
     args = parser.parse_args(argv)
-    text = report(args.runs, args.window)
+    text = report(args.runs, args.window, args.teacher_return)
     print(text)
     if args.out:
         write_atomic(args.out, text + "\n")

@@ -10,9 +10,11 @@ from benchmark_scripts import load_benchmark
 falls = load_benchmark("falls")
 
 
-def write_run(folder, rows, evaluated="target"):
+def write_run(folder, rows, evaluated="target", summary=True):
     folder.mkdir(parents=True)
-    (folder / "summary.json").write_text(json.dumps({"teacher_return": 100.0, "evaluated_actor": evaluated}))
+    (folder / "config.yaml").write_text(f"eval:\n  actor: {evaluated}\n")
+    if summary:
+        (folder / "summary.json").write_text(json.dumps({"teacher_return": 100.0}))
     lines = ["tag,frames,value"] + [f"{tag},{frames},{value}" for tag, frames, value in rows]
     (folder / "scalars.csv").write_text("\n".join(lines) + "\n")
 
@@ -54,3 +56,11 @@ def test_a_run_with_one_actor_evaluated_is_refused(tmp_path):
     write_run(tmp_path / "run", [("eval/return", 10_000, 50.0)])
     with pytest.raises(ValueError, match="no eval/return_online: the run did not evaluate both actors"):
         falls.run_rows(tmp_path / "run", window=10_000)
+
+
+def test_an_unfinished_run_needs_its_teachers_return(tmp_path):
+    write_run(tmp_path / "run", rows(), summary=False)
+    with pytest.raises(ValueError, match="no summary.json .* --teacher-return"):
+        falls.run_rows(tmp_path / "run", window=10_000)
+    line, _ = falls.run_rows(tmp_path / "run", window=10_000, given_teacher=100.0)
+    assert line["online"]["falls"] == 2
