@@ -5,14 +5,15 @@ show in the frames before each evaluation that fell.
 
 A run folder is a live run (``logs/scalars/``) or a results copy (``scalars.csv``) with its
 ``config.yaml`` and, once finished, its ``summary.json`` (its teacher's return; for an unfinished
-run, ``--teacher-return``), whose evaluations logged both actors: ``eval/return`` and
-``eval/return_target`` or ``eval/return_online`` (``eval.other_actor=true``). Per run: the fall share
-of each actor (:func:`torchrl_sail.runs.fall_share`, counted from the first evaluation where the
-*online* actor passed the teacher), and how often one fell where the other did not. Then, pooled
-over the runs, each diagnostic averaged over the ``--window`` frames before an evaluation, at the
-online actor's falls against its other evaluations after passing: ``actor/change`` and
-``actor/target_gap`` (how far a TD3 block moves the actor, how far it is from the target actor),
-``sail/q_mean``, ``sail/d_reward_mean``, ``train/dense_return`` and the trajectories promoted.
+run, ``--teacher-return``). Its evaluations logged the online actor and, with
+``eval.other_actor=true``, both actors (``eval/return`` and ``eval/return_target`` or
+``eval/return_online``; otherwise the target actor's columns read n/a). Per run: the fall share of
+each actor (:func:`torchrl_sail.runs.fall_share`), and how often one fell where the other did not.
+Then, pooled over the runs, each diagnostic averaged over the ``--window`` frames before an
+evaluation, at the online actor's falls against its other evaluations after its first pass:
+``actor/change`` and ``actor/target_gap`` (how far a TD3 block moves the actor, how far it is from
+the target actor), ``sail/q_mean``, ``sail/d_reward_mean``, ``train/dense_return`` and the
+trajectories promoted.
 """
 
 from __future__ import annotations
@@ -46,8 +47,8 @@ def actors(folder: Path) -> dict[str, dict[int, float]]:
         evaluated: dict(read_scalar(folder, "eval/return")),
         other: dict(read_scalar(folder, f"eval/return_{other}")),
     }
-    if not curves[other]:
-        raise ValueError(f"{folder}: no eval/return_{other}: the run did not evaluate both actors (eval.other_actor)")
+    if not curves["online"]:
+        raise ValueError(f"{folder}: no eval/return_online: the run evaluated its target actor alone")
     return curves
 
 
@@ -74,15 +75,18 @@ def run_rows(folder: Path, window: int, given_teacher: float | None = None) -> t
     """The run's summary line and one row per online evaluation after its first pass."""
     teacher = teacher_return(folder, given_teacher)
     curves = actors(folder)
-    online, target = curves["online"], curves["target"]
-    frames = sorted(set(online) & set(target))
-    share = {name: fall_share([(f, curves[name][f]) for f in frames], teacher) for name in ("online", "target")}
+    online, target = curves["online"], curves["target"] or None  # None: the target actor was not evaluated
+    frames = sorted(set(online) & set(target)) if target else sorted(online)
+    share = {
+        name: None if curve is None else fall_share([(f, curve[f]) for f in frames], teacher)
+        for name, curve in (("online", online), ("target", target))
+    }
     first = next((f for f in frames if online[f] > teacher), None)
     after = [] if first is None else [f for f in frames if f > first]
     series = {tag: read_scalar(folder, tag) for tag in (*DIAGNOSTICS, PROMOTED)}
     rows = []
     for f in after:
-        row = {"fell": online[f] < teacher, "target_fell": target[f] < teacher}
+        row = {"fell": online[f] < teacher, "target_fell": None if target is None else target[f] < teacher}
         for tag in DIAGNOSTICS:
             row[tag] = window_mean(series[tag], f - window, f)
         row["promoted"] = last_at(series[PROMOTED], f) - last_at(series[PROMOTED], f - window)
@@ -93,8 +97,8 @@ def run_rows(folder: Path, window: int, given_teacher: float | None = None) -> t
         "passed_at": first,
         "online": share["online"],
         "target": share["target"],
-        "online_only": sum(r["fell"] and not r["target_fell"] for r in rows),
-        "target_only": sum(r["target_fell"] and not r["fell"] for r in rows),
+        "online_only": None if target is None else sum(r["fell"] and not r["target_fell"] for r in rows),
+        "target_only": None if target is None else sum(r["target_fell"] and not r["fell"] for r in rows),
     }
     return line, rows
 
@@ -122,7 +126,8 @@ def report(folders: list[Path], window: int, given_teacher: float | None = None)
         pooled += rows
         lines.append(
             f"| `{line['run']}` | {line['teacher']:.1f} | {line['passed_at'] or '-'} | {shown(line['online'])} "
-            f"| {shown(line['target'])} | {line['online_only']} | {line['target_only']} |"
+            f"| {shown(line['target'])} | {'-' if line['online_only'] is None else line['online_only']} "
+            f"| {'-' if line['target_only'] is None else line['target_only']} |"
         )
     fell = [row for row in pooled if row["fell"]]
     held = [row for row in pooled if not row["fell"]]

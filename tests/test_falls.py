@@ -52,9 +52,21 @@ def test_a_run_that_evaluated_the_online_actor_reads_its_target_actor_as_the_oth
     assert line["online"]["falls"] == 2 and line["target"]["falls"] == 1
 
 
-def test_a_run_with_one_actor_evaluated_is_refused(tmp_path):
+def test_a_run_that_evaluated_the_online_actor_alone_has_no_target_figures(tmp_path):
+    write_run(
+        tmp_path / "run",
+        [r for r in rows("eval/return", "eval/return_target") if r[0] != "eval/return_target"],
+        evaluated="online",
+    )
+    line, after = falls.run_rows(tmp_path / "run", window=10_000)
+    assert line["online"] == {"share": 2 / 3, "falls": 2, "evaluations": 3} and line["target"] is None
+    assert line["online_only"] is None and [row["fell"] for row in after] == [True, False, True]
+    assert "| 66.7% (2/3) | n/a | - | - |" in falls.report([tmp_path / "run"], window=10_000)
+
+
+def test_a_run_that_evaluated_the_target_actor_alone_is_refused(tmp_path):
     write_run(tmp_path / "run", [("eval/return", 10_000, 50.0)])
-    with pytest.raises(ValueError, match="no eval/return_online: the run did not evaluate both actors"):
+    with pytest.raises(ValueError, match="no eval/return_online: the run evaluated its target actor alone"):
         falls.run_rows(tmp_path / "run", window=10_000)
 
 
