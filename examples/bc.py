@@ -3,8 +3,9 @@
     python examples/bc.py algo=bc env=Hopper-v4 teacher.path=<teacher.npz|dataset folder>
 
 The actor (the same network as TD3's in ``sail_td3.py``) regresses the teacher's actions with
-TorchRL's ``BCLoss`` (MSE), offline: no env frames are collected. It trains
-``ceil(algo.bc.epochs * teacher transitions / algo.bc.batch_size)`` steps, then is evaluated like
+TorchRL's ``BCLoss`` (MSE), offline: no env frames are collected. It trains ``algo.bc.epochs``
+epochs of ``max(1, teacher transitions // algo.bc.batch_size)`` steps each (the SAIL authors'
+``pretrain_with_buffer``), then is evaluated like
 every other method, and the run folder holds the same files (``summary.json`` with
 ``"offline": true`` and ``frames: 0``, ``eval/return`` logged at frame 0, a checkpoint). The
 same config (``conf/config.yaml``) and overrides as ``sail_td3.py``; ``algo=`` must name a
@@ -17,7 +18,6 @@ from mujoco_gl import check_mujoco_gl
 
 check_mujoco_gl()  # before TorchRL imports MuJoCo, which loads the MUJOCO_GL backend on import
 
-import math
 import time
 
 import hydra
@@ -56,7 +56,8 @@ def main(cfg):  # noqa: F821
     actor, _, _ = make_agent(cfg, env)
     loss = BCLoss(actor, loss_function="l2")
     optimizer = torch.optim.Adam(loss.actor_network_params.flatten_keys().values(), lr=cfg.algo.bc.lr)
-    steps = math.ceil(cfg.algo.bc.epochs * len(teacher) / cfg.algo.bc.batch_size)
+    # the authors' epochs: whole batches of the teacher buffer, at least one
+    steps = cfg.algo.bc.epochs * max(1, len(teacher) // cfg.algo.bc.batch_size)
 
     run = make_run(cfg)
     checkpoint = Checkpoint(actor=actor, optim_actor=optimizer, rng=GlobalRNGState(), run=run)

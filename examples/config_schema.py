@@ -149,8 +149,9 @@ class SACConfig:
 class BCConfig:
     """Behaviour cloning (learner=bc): TorchRL's BCLoss (MSE on the teacher's actions), Adam."""
 
-    epochs: int = 100  # passes over the teacher buffer (the authors' BC: 100 x n_episodes epochs, lr 1e-3)
-    batch_size: int = 64
+    # the authors' BC (pretrain_with_buffer): 100 x n_episodes epochs of max(1, transitions // 256) batches
+    epochs: int = 100
+    batch_size: int = 256
     lr: float = 1.0e-3
 
 

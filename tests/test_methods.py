@@ -149,14 +149,14 @@ def test_pofd_td3_reward_is_the_env_reward_plus_the_shaping(tmp_path, teacher_di
 
 def test_bc_is_offline_and_skipped_when_finished(tmp_path, teacher_dir):
     run_dir = tmp_path / "bc"
-    args = ["algo=bc", f"teacher.path={teacher_dir / HOPPER}", "algo.bc.epochs=10", *COMMON]
+    args = ["algo=bc", f"teacher.path={teacher_dir / HOPPER}", "algo.bc.epochs=10", "algo.bc.batch_size=64", *COMMON]
     run(run_dir, *args, script="bc.py")
     summary = outputs_written(run_dir, "bc", 0)
-    assert summary["offline"] is True and summary["gradient_steps"] == 67  # ceil(10 * 425 / 64)
+    assert summary["offline"] is True and summary["gradient_steps"] == 60  # 10 epochs of 425 // 64 = 6 batches
     assert [frame for frame, _ in read_scalar(run_dir, "eval/return")] == [0]
     losses = [value for _, value in read_scalar(run_dir, "bc/loss")]
     assert losses[-1] < losses[0]  # the actor fits the teacher's actions
-    assert saved(run_dir, "run")["run"]["gradient_steps"] == 67
+    assert saved(run_dir, "run")["run"]["gradient_steps"] == 60
     stamp = (run_dir / "summary.json").stat().st_mtime_ns
     proc = run(run_dir, *args, "resume=auto", script="bc.py")
     assert "finished run: skipped" in proc.stdout and (run_dir / "summary.json").stat().st_mtime_ns == stamp
