@@ -52,6 +52,7 @@ EvaluatedActor = Choice("EvaluatedActor", {name: name for name in ("online", "ta
 EvaluatedPolicy = Choice("EvaluatedPolicy", {name: name for name in ("last", "best")})
 LossFunction = Choice("LossFunction", {name: name for name in ("l1", "l2", "smooth_l1")})
 Activation = Choice("Activation", {name: name for name in ("relu", "tanh", "elu")})
+DiscriminatorInit = Choice("DiscriminatorInit", {name: name for name in ("xavier", "orthogonal")})
 Backend = Choice("Backend", {name: name for name in ("direct", "process", "ray")})
 LoggerBackend = Choice("LoggerBackend", {name: name for name in ("csv", "wandb", "tensorboard")})
 WandbMode = Choice("WandbMode", {name: name for name in ("offline", "online")})
@@ -278,6 +279,8 @@ class NetworkConfig:
     discriminator_activation: Activation = Activation.tanh
     normalize_observations: bool = True  # D's running observation normalisation
     discriminator_spectral_norm: bool = False  # spectral normalisation of D's layers (not the authors')
+    # D's linear weights: xavier (Glorot-uniform, the SAIL authors') | orthogonal (Kostrikov et al.'s DAC release)
+    discriminator_init: DiscriminatorInit = DiscriminatorInit.xavier
 
 
 @dataclass

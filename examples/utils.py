@@ -437,6 +437,7 @@ def make_discriminator(cfg: DictConfig, env) -> Discriminator:
         activation_class=_ACTIVATIONS[cfg.network.discriminator_activation],
         normalize_observations=cfg.network.normalize_observations,
         spectral_norm=cfg.network.discriminator_spectral_norm,
+        init=str(cfg.network.discriminator_init),
     ).to(cfg.device)
 
 

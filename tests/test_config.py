@@ -45,6 +45,8 @@ def test_defaults_are_the_papers_budget_and_typed():
     assert cfg.algo.learner == "td3" and cfg.algo.learner is Learner.td3 and f"{cfg.algo.learner}" == "td3"
     assert OmegaConf.to_container(cfg, enum_to_str=True)["logger"]["backends"] == ["csv", "wandb"]
     assert make("collector.total_frames=3000000").collector.total_frames == 3_000_000
+    assert make().network.discriminator_init == "xavier"  # the SAIL authors'; DAC's release: orthogonal
+    assert make("algo=dac_published").network.discriminator_init == "orthogonal"
     bc = make("algo=bc").algo.bc  # the authors' BC: their TD3 batch, 100 epochs per demonstration episode
     assert (bc.batch_size, bc.epochs, bc.lr) == (256, 100, 1e-3)
 

@@ -599,3 +599,22 @@ class TestDiscriminatorLoss:
 if __name__ == "__main__":
     args, unknown = argparse.ArgumentParser().parse_known_args()
     pytest.main([__file__, "--capture", "no", "--exitfirst"] + unknown)
+
+
+def test_orthogonal_init_gives_orthonormal_weights_and_xavier_stays_the_default():
+    from torchrl_sail import DiscriminatorNet
+
+    torch.manual_seed(0)
+    orthogonal = DiscriminatorNet(5, 3, num_cells=(16, 4), init="orthogonal")
+    for layer in orthogonal._linears():
+        w = layer.weight.detach()
+        gram = w @ w.T if w.shape[0] <= w.shape[1] else w.T @ w  # the shorter side is orthonormal
+        torch.testing.assert_close(gram, torch.eye(min(w.shape)), atol=1e-5, rtol=0)
+        assert torch.count_nonzero(layer.bias) == 0
+    default = DiscriminatorNet(5, 3, num_cells=(16, 4))
+    assert default.init == "xavier"
+    for layer in default._linears():
+        fan_out, fan_in = layer.weight.shape
+        assert layer.weight.abs().max() <= math.sqrt(6 / (fan_in + fan_out))  # Glorot-uniform's bound
+    with pytest.raises(ValueError, match=r"init='kaiming': must be one of \['orthogonal', 'xavier'\]"):
+        DiscriminatorNet(5, 3, init="kaiming")

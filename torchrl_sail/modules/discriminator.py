@@ -145,6 +145,10 @@ class RunningObsNorm(nn.Module):
         return f"shape={tuple(self.shape)}, min_var={self.min_var}"
 
 
+# the linear layers' weight init by name: the SAIL authors' (tf's fully_connected default) and DAC's release
+_INITS = {"xavier": nn.init.xavier_uniform_, "orthogonal": nn.init.orthogonal_}
+
+
 class DiscriminatorNet(nn.Module):
     """State-action discriminator ``D(s, a)`` returning a logit (authors' architecture).
 
@@ -156,7 +160,8 @@ class DiscriminatorNet(nn.Module):
 
     Following the authors' ``tf.contrib.layers.fully_connected`` defaults, every linear
     layer is re-initialised with Glorot/Xavier-uniform weights and zero biases
-    (:meth:`reset_parameters`); this replaces PyTorch's default Kaiming-uniform init.
+    (:meth:`reset_parameters`; ``init="orthogonal"``: orthogonal weights, as Kostrikov et al.'s
+    DAC release); this replaces PyTorch's default Kaiming-uniform init.
 
     :meth:`forward` never updates the normaliser: only
     :class:`~torchrl_sail.DiscriminatorLoss` does, explicitly. The forward is therefore
@@ -185,6 +190,9 @@ class DiscriminatorNet(nn.Module):
             :class:`~torchrl_sail.DiscriminatorLoss` (:meth:`spectral_norm_iteration`), never in a
             plain forward, which stays pure. Not the authors' (they have none). Defaults to
             ``False``.
+        init (str, optional): the linear layers' weights: ``"xavier"`` (Glorot-uniform, the SAIL
+            authors') or ``"orthogonal"`` (gain 1, Kostrikov et al.'s DAC release); biases zero.
+            Defaults to ``"xavier"``.
 
     Examples:
         >>> import torch
@@ -208,8 +216,12 @@ class DiscriminatorNet(nn.Module):
         activation_class: type[nn.Module] = nn.Tanh,
         normalize_observations: bool = True,
         spectral_norm: bool = False,
+        init: str = "xavier",
     ) -> None:
         super().__init__()
+        if init not in _INITS:
+            raise ValueError(f"init={init!r}: must be one of {sorted(_INITS)}")
+        self.init = init
         self.observation_dim = observation_dim
         self.action_dim = action_dim
         self.obs_norm = RunningObsNorm(observation_dim) if normalize_observations else None
@@ -229,7 +241,7 @@ class DiscriminatorNet(nn.Module):
         return [layer.parametrizations.weight for layer in self._linears() if hasattr(layer, "parametrizations")]
 
     def reset_parameters(self) -> None:
-        """Re-initialises the MLP with Glorot-uniform weights and zero biases (authors' init).
+        """Re-initialises the MLP with ``init``'s weights (Glorot-uniform: the authors') and zero biases.
 
         With ``spectral_norm``, the normalisation is registered again on the new weights (the
         same parameters), with singular vectors estimated afresh (15 power iterations). The
@@ -239,7 +251,7 @@ class DiscriminatorNet(nn.Module):
             for layer in self._linears():
                 if hasattr(layer, "parametrizations"):
                     nn.utils.parametrize.remove_parametrizations(layer, "weight", leave_parametrized=False)
-                nn.init.xavier_uniform_(layer.weight)
+                _INITS[self.init](layer.weight)
                 if layer.bias is not None:
                     nn.init.zeros_(layer.bias)
                 if self.spectral_norm:
@@ -324,7 +336,7 @@ class Discriminator(TensorDictModule):
         out_key (NestedKey, optional): where the logit is written. Defaults to
             ``"d_logit"``.
         **net_kwargs: forwarded to :class:`DiscriminatorNet` (``num_cells``,
-            ``activation_class``, ``normalize_observations``, ``spectral_norm``).
+            ``activation_class``, ``normalize_observations``, ``spectral_norm``, ``init``).
 
     Examples:
         >>> import torch
