@@ -40,7 +40,7 @@ from utils import make_agent, make_env, make_teacher
 from video import log_video, make_render_env
 
 from torchrl_sail import DivergenceCheck
-from torchrl_sail.runs import checkpoint_dir, start_or_resume
+from torchrl_sail.runs import add_evaluation, checkpoint_dir, start_or_resume
 
 register_config_schema()  # the typed schema conf/config.yaml extends: Hydra checks every value against it
 
@@ -87,29 +87,21 @@ def main(cfg):  # noqa: F821
             log_metrics(loggers, {"bc/loss": out["loss_bc"]}, step + 1)  # x axis: BC steps
     if run["gradient_steps"] < steps:
         run["gradient_steps"], run["train_seconds"] = steps, time.time() - start
-        run["evals"] = [(0, evaluate(env, actor, cfg.eval.episodes, cfg.env.max_episode_steps))]
+        add_evaluation(run, 0, evaluate(env, actor, cfg.eval.episodes, cfg.env.max_episode_steps), teacher_return)
         log_metrics(loggers, {"eval/return": run["evals"][0][1]}, 0)
         if cfg.eval.video_every_frames:  # offline: the one evaluation (frame 0) gets the one video
             log_video(loggers, make_render_env(cfg, cfg.seed + 30_000, cfg.eval.video_size), actor, cfg, run_dir, 0)
         run["loggers"] = logger_states(loggers)
         checkpoint.save(checkpoint_dir(run_dir))
 
-    final = run["evals"][0][1]
     write_run_summary(
         run_dir,
         cfg,
+        run,
         teacher_return=teacher_return,
-        alpha_switch_frame=None,
         teacher_source=teacher_source,
         offline=True,
-        frames=0,
-        gradient_steps=run["gradient_steps"],
-        final_eval_return=final,
-        best_eval_return=final,
-        passed_teacher_at_frame=0 if final > teacher_return else None,
         train_seconds=run["train_seconds"],
-        resumes=run["resumes"],
-        starts=run["starts"],
     )
 
 

@@ -35,7 +35,6 @@ from mujoco_gl import check_mujoco_gl
 check_mujoco_gl()  # before TorchRL imports MuJoCo, which loads the MUJOCO_GL backend on import
 
 import math
-import time
 
 import hydra
 import torch
@@ -43,9 +42,10 @@ import tqdm
 from config_schema import register_config_schema
 from run_utils import (
     EXAMPLES_DIR,
+    RunCheckpoint,
+    RunClock,
     crossings,
     log_metrics,
-    logger_states,
     make_loggers,
     make_run,
     record_evaluation,
@@ -71,14 +71,7 @@ from utils import (
 from video import log_video, make_render_env
 
 from torchrl_sail import TRANSITION_KEYS, DivergenceCheck, MixedReplayBuffer, observation_normalizer
-from torchrl_sail.runs import (
-    checkpoint_dir,
-    fall_share,
-    last_checkpoint,
-    start_or_resume,
-    train_timing,
-    wall_time,
-)
+from torchrl_sail.runs import start_or_resume
 
 register_config_schema()  # the typed schema conf/config.yaml extends: Hydra checks every value against it
 
@@ -161,16 +154,6 @@ def main(cfg):  # noqa: F821
     loggers = make_loggers(cfg, run_dir, run["loggers"])
     divergence = DivergenceCheck({"actor": actor, "critic": critic, "discriminator": discriminator})
 
-    def check(metrics: dict, frames: int) -> None:
-        divergence(metrics, frame=frames, checkpoint=last_checkpoint(run_dir, run))
-
-    def save(frames: int) -> None:
-        check(metrics, frames)
-        run.update(
-            frames=frames, loggers=logger_states(loggers), wall_seconds=wall_time(wall_before, start, time.time())
-        )
-        checkpoint.save(checkpoint_dir(run_dir))
-
     render_env = make_render_env(cfg, cfg.seed + 30_000, cfg.eval.video_size) if cfg.eval.video_every_frames else None
     frames, metrics = run["frames"], {}
     collector = Collector(
@@ -181,9 +164,9 @@ def main(cfg):  # noqa: F821
         total_frames=max(cfg.collector.total_frames - frames, 0),
     )
     pbar = tqdm.tqdm(total=cfg.collector.total_frames, initial=frames, unit="frames")
-    start, start_frames, clock = time.time(), frames, (time.time(), frames)
-    wall_before = run["wall_seconds"]  # the wall time of the run's earlier starts
-    for data in collector if collector.total_frames else ():
+    clock = RunClock(run, frames)  # no warm-up: the whole run is timed
+    save = RunCheckpoint(checkpoint, run_dir, run, loggers=loggers, divergence=divergence, clock=clock)
+    for data in clock.batches(collector, frames):
         before, frames = frames, frames + data.numel()
         metrics = {}
         done = data["next", "done"].reshape(-1)
@@ -220,7 +203,7 @@ def main(cfg):  # noqa: F821
                 run["gradient_steps"] += 1
         metrics.update({f"ppo/{key}": out[key].detach() for key in ("loss_objective", "loss_critic", "entropy")})
         metrics["ppo/lr"] = p.lr * factor  # of the batch's last update
-        check(metrics, frames)  # NaN/inf stops the run before it is evaluated, logged or saved
+        save.check(metrics, frames)  # NaN/inf stops the run before it is evaluated, logged or saved
 
         if crossings(cfg.eval.every_frames, 0, before, frames):
             copy_observation_norm(env, eval_env)
@@ -228,34 +211,17 @@ def main(cfg):  # noqa: F821
         if crossings(cfg.eval.video_every_frames, 0, before, frames):
             copy_observation_norm(env, render_env)
             log_video(loggers, render_env, actor, cfg, run_dir, frames)
-        metrics["time/fps"] = (frames - start_frames) / max(time.time() - start, 1e-9)
+        metrics["time/fps"] = clock.fps(frames)
         log_metrics(loggers, metrics, frames)
         pbar.update(data.numel())
         if crossings(cfg.checkpoint.every_frames, 0, before, frames):
-            save(frames)
+            save(metrics, frames=frames)
     collector.shutdown()
     pbar.close()
-    end = time.time()
-    save(frames)
-    evals = [value for _, value in run["evals"]]
+    clock.stop()
+    save(metrics, frames=frames)
     write_run_summary(
-        run_dir,
-        cfg,
-        teacher_return=teacher_return,
-        alpha_switch_frame=None,
-        teacher_source=teacher_source,
-        frames=frames,
-        gradient_steps=run["gradient_steps"],
-        final_eval_return=evals[-1] if evals else None,
-        best_eval_return=max(evals) if evals else None,
-        passed_teacher_at_frame=run["passed_teacher_at"],
-        fall_share=fall_share(run["evals"], teacher_return),
-        resumes=run["resumes"],
-        starts=run["starts"],
-        wall_seconds=run["wall_seconds"],
-        num_promoted=0,
-        frames_per_second=(frames - start_frames) / max(end - start, 1e-9),
-        **train_timing(clock, end=end, frames=frames),
+        run_dir, cfg, run, teacher_return=teacher_return, teacher_source=teacher_source, clock=clock, num_promoted=0
     )
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import random
+import time
 import warnings
 from pathlib import Path
 
@@ -14,16 +15,22 @@ from config_schema import check_config, check_script
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 from tensordict import TensorDict
+from torchrl import timeit
 from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.record.loggers import get_logger
 
 from torchrl_sail.runs import (
     actor_summary,
     add_evaluation,
+    checkpoint_dir,
     discriminator_summary,
+    fall_share,
+    last_checkpoint,
     new_run,
     plot_learning_curve,
     resume_mode,
+    train_timing,
+    wall_time,
     write_summary,
 )
 
@@ -78,12 +85,6 @@ def crossings(every: int, start: int, before: int, now: int) -> int:
     if not every:
         return 0
     return max(0, now // every - (max(start, before + 1) - 1) // every)
-
-
-def actor_lr(cfg: DictConfig, frames: int) -> float:
-    """The actor's learning rate at ``frames``: ``optim.lr``, decayed stepwise by ``optim.actor_lr_decay``."""
-    decay = cfg.optim.actor_lr_decay
-    return cfg.optim.lr if decay is None else cfg.optim.lr * decay.rate ** (frames // decay.every_frames)
 
 
 def make_run(cfg: DictConfig) -> dict:
@@ -229,6 +230,18 @@ class BestPolicy:
             kept.update_(TensorDict(state[name]).unflatten_keys("."))
 
 
+def evaluate_best_policy(cfg: DictConfig, best_policy: BestPolicy, actor, make_env) -> dict:
+    """``best_policy``'s record and, once a policy is kept, its ``eval.best_policy.episodes`` deterministic
+    episodes (the actor ``eval.actor`` names) on the stream ``examples/evaluate.py`` uses by default
+    (seed + 20000): the summary's ``best_policy``."""
+    best, episodes = best_policy.record(), cfg.eval.best_policy.episodes
+    if best["frames"] is None or not episodes:
+        return best
+    with best_policy.params(cfg.eval.actor).to_module(actor, preserve_module_state=False):
+        best["eval_return"] = evaluate(make_env(cfg, cfg.seed + 20_000), actor, episodes, cfg.env.max_episode_steps)
+    return {**best, "actor": str(cfg.eval.actor), "episodes": episodes, "seed": cfg.seed + 20_000}
+
+
 def load_best_policy(path: Path, loss, which: str) -> dict:
     """Puts the weights of ``best_policy.pt`` (:class:`BestPolicy`) for the actor ``which`` names into
     ``loss``'s actor, and returns the file's record (frames, training-return mean, window)."""
@@ -280,15 +293,93 @@ def log_metrics(loggers, metrics: dict, step: int) -> None:
         logger.log_metrics(metrics, step)
 
 
-def write_run_summary(run_dir: Path, cfg: DictConfig, *, teacher_return: float, alpha_switch_frame, **results) -> None:
-    """The finished run's ``learning_curve.png`` and ``summary.json`` (``torchrl_sail.runs``): the run's
-    env, algo, seed, teacher return and budget, ``results``, then memory and provenance."""
+class RunClock:
+    """The run's time: this start's wall clock and frame rate, the run's wall time over all its
+    starts (``run["wall_seconds"]`` of the earlier ones), and the timed part after warm-up
+    (TorchRL's ``timeit`` sections restart there)."""
+
+    def __init__(self, run: dict, frames: int, *, warmup: int = 0) -> None:
+        self.start, self.start_frames, self.wall_before = time.time(), frames, run["wall_seconds"]
+        self.warmup, self.train_clock, self.end = warmup, None, None
+
+    def batches(self, collector, frames: int):
+        """The collector's batches, each timed (``collect``); the timed part starts at the first
+        batch collected after warm-up. No batch for a run with no frames left."""
+        iterator = iter(collector if collector.total_frames else ())
+        while True:
+            if self.train_clock is None and frames >= self.warmup:
+                timeit.erase()
+                self.train_clock = (time.time(), frames)
+            with timeit("collect"):
+                data = next(iterator, None)
+            if data is None:
+                return
+            frames += data.numel()
+            yield data
+
+    def fps(self, frames: int) -> float:
+        return (frames - self.start_frames) / max((self.end or time.time()) - self.start, 1e-9)
+
+    def wall_seconds(self) -> float | None:
+        return wall_time(self.wall_before, self.start, time.time())
+
+    def stop(self) -> None:
+        self.end = time.time()
+
+    def summary(self, frames: int) -> dict:
+        """The summary's speed entries: this start's frames per second and the timed part's."""
+        return {"frames_per_second": self.fps(frames), **train_timing(self.train_clock, end=self.end, frames=frames)}
+
+
+class RunCheckpoint:
+    """Saves the run where it stands: the divergence check first (NaN/inf stops the run before anything
+    is written), then the run's counters, logger states and wall time, the checkpoint, and the files
+    that must match it (``after_save``, e.g. ``BestPolicy``'s ``best_policy.pt``).
+
+    ``check(metrics, frames)`` runs the divergence check alone (at the logging cadence).
+    """
+
+    def __init__(
+        self, checkpoint, run_dir: Path, run: dict, *, loggers: dict, divergence, clock: RunClock, after_save=()
+    ):
+        self.checkpoint, self.run_dir, self.run, self.loggers = checkpoint, run_dir, run, loggers
+        self.divergence, self.clock, self.after_save = divergence, clock, list(after_save)
+
+    def check(self, metrics: dict, frames: int) -> None:
+        self.divergence(metrics, frame=frames, checkpoint=last_checkpoint(self.run_dir, self.run))
+
+    def __call__(self, metrics: dict, *, frames: int, **counters) -> None:
+        self.check(metrics, frames)
+        self.run.update(
+            frames=frames, **counters, loggers=logger_states(self.loggers), wall_seconds=self.clock.wall_seconds()
+        )
+        self.checkpoint.save(checkpoint_dir(self.run_dir))
+        for write in self.after_save:
+            write()
+
+
+def write_run_summary(
+    run_dir: Path,
+    cfg: DictConfig,
+    run: dict,
+    *,
+    teacher_return: float,
+    teacher_source: str,
+    clock: RunClock | None = None,
+    alpha_switch_frame: int | None = None,
+    **results,
+) -> None:
+    """The finished run's ``learning_curve.png`` and ``summary.json`` (``torchrl_sail.runs``), for every
+    training script: the run's env, algo, seed, teacher and budget; from ``run``, its counters, its
+    evaluations (last, best, the first to pass the teacher, the fall share) and its starts; from
+    ``clock``, this start's speeds; then ``results`` (what only this script has), memory and provenance."""
     plot_learning_curve(
         run_dir,
         teacher_return=teacher_return,
         alpha_switch_frame=alpha_switch_frame,
         title=f"{cfg.algo.name} on {cfg.env.name}, seed {cfg.seed}",
     )
+    evals = [value for _, value in run["evals"]]
     write_summary(
         run_dir,
         {
@@ -296,8 +387,19 @@ def write_run_summary(run_dir: Path, cfg: DictConfig, *, teacher_return: float, 
             "algo": cfg.algo.name,
             "seed": cfg.seed,
             "teacher_return": teacher_return,
+            "teacher_source": teacher_source,
             "total_frames": 0 if results.get("offline") else cfg.collector.total_frames,
             "alpha_switched_at_frame": alpha_switch_frame,
+            "frames": run["frames"],
+            "gradient_steps": run["gradient_steps"],
+            "final_eval_return": evals[-1] if evals else None,
+            "best_eval_return": max(evals) if evals else None,
+            "passed_teacher_at_frame": run["passed_teacher_at"],
+            "fall_share": fall_share(run["evals"], teacher_return),
+            "resumes": run["resumes"],
+            "starts": run["starts"],
+            "wall_seconds": run["wall_seconds"],
+            **(clock.summary(run["frames"]) if clock is not None else {}),
             **results,
             # D's saturation, skipped steps and last statistics, from the logs (absent without a D)
             **({"discriminator": d} if (d := discriminator_summary(run_dir)) is not None else {}),

@@ -1,0 +1,333 @@
+"""The steps of the off-policy training loop (``sail_td3.py``), one object per step of Algorithm 1.
+
+Each step is built from the config once (``make_*``) and called once per collected batch with the
+frame window ``(before, frames]`` that batch covers: it acts on the cadences that fall in the window
+and returns the metrics to log (``{}`` when nothing was due). A method's extra behaviour is a part
+of the step it belongs to, chosen by the config when the step is built: DDPGfD's n-step views and
+DAC's absorbing states are how :class:`TransitionStore` stores rows, SAIL-OnPolicy's recent window
+is one more buffer it fills; an actor learning-rate decay (:class:`ActorLRDecay`) runs inside
+:class:`TD3Block`; RND's predictor (:class:`PredictorUpdate`) learns inside
+:class:`DiscriminatorBlock`, which has no steps when the reward is the env's; the other actor's
+evaluation and videos are part of :class:`Evaluations`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+
+import torch
+from omegaconf import DictConfig
+from run_utils import crossings, evaluate_actor, record_evaluation
+from torchrl import timeit
+from utils import ActorDrift, actor_saturation, discriminator_block, make_absorbing, make_nstep, make_replay
+from video import log_video, make_render_env
+
+from torchrl_sail import TRANSITION_KEYS
+
+# ----------------------------------------------------------------------------- store and promote
+
+
+class TransitionStore:
+    """Algorithm 1's "store the transitions": a collected batch's rows into the agent's buffers.
+
+    Args:
+        buffers: every buffer a stored row goes to (the replay buffer; SAIL-OnPolicy's recent window too).
+        nstep: DDPGfD's :class:`~torchrl_sail.NStepTransform` (``None``: one-step rows). It works per
+            env stream across batches, so a step is stored once the ``n`` steps after it are collected.
+        absorbing: DAC's :class:`~torchrl_sail.AbsorbingStateTransform` (``None``: no absorbing states).
+    """
+
+    def __init__(self, buffers, *, nstep=None, absorbing=None) -> None:
+        self.buffers, self.nstep, self.absorbing = list(buffers), nstep, absorbing
+
+    def __call__(self, data) -> None:
+        if self.nstep is None:
+            stored = data.reshape(-1).select(*TRANSITION_KEYS)
+        else:  # time last per env stream; flatten, not reshape(-1): TensorDict sizes an empty batch as 1 row
+            stored = self.nstep.inv(data.select(*TRANSITION_KEYS)).flatten(0, -1)
+        if self.absorbing is not None:
+            stored = self.absorbing.add_absorbing_transitions(stored)
+        if stored.shape[0]:  # the first batches of an n-step run can all be waiting
+            for buffer in self.buffers:
+                buffer.extend(stored)
+
+
+def make_recent(cfg: DictConfig, replay):
+    """The transitions D learns the agent's side from: SAIL-OnPolicy's window of the most recent
+    ``algo.recent_window`` rows (``algo.discriminator_agent_data=recent``), else the replay buffer itself."""
+    if cfg.algo.discriminator_agent_data == "recent":
+        return make_replay(cfg.algo.recent_window, cfg.device)
+    return replay
+
+
+def make_transition_store(cfg: DictConfig, replay, recent, action_spec) -> TransitionStore:
+    """The store of ``cfg``'s method; the agent's absorbing rows store ``algo.absorbing_action``."""
+    buffers = [replay] if recent is replay else [replay, recent]
+    return TransitionStore(buffers, nstep=make_nstep(cfg), absorbing=make_absorbing(cfg, action_spec))
+
+
+class TeacherUpdate:
+    """Algorithm 1's teacher update: every finished trajectory with ``r_e > C`` joins the teacher
+    buffer (``adaptive``; the no-adaptation ablation keeps its demonstrations), then alpha follows
+    the promotions (``alpha_scheduler.step``).
+
+    Called with a batch and the frame count after it; returns alpha for the batch's TD3 block and
+    ``{"alpha_switch_frame": frames}`` at the batch where alpha changed (else ``{}``).
+    """
+
+    def __init__(self, teacher, alpha_scheduler, *, adaptive: bool) -> None:
+        self.teacher, self.alpha_scheduler, self.adaptive = teacher, alpha_scheduler, adaptive
+
+    def __call__(self, data, frames: int) -> tuple[float, dict]:
+        if self.adaptive:
+            self.teacher.extend(data)
+        before = self.alpha_scheduler.alpha
+        alpha = self.alpha_scheduler.step(frames=frames, num_promoted=self.teacher.writer.num_promoted)
+        return alpha, ({"alpha_switch_frame": frames} if alpha != before else {})
+
+
+def finished_episodes(data, best_policy, *, before: int, frames: int) -> dict:
+    """The training episodes that ended in the batch: their returns go to the best-policy rule
+    (:class:`~run_utils.BestPolicy`), their means to the logs (``train/*``; RND's bonus too)."""
+    flat = data.reshape(-1)
+    done = flat["next", "done"].squeeze(-1)
+    best_policy.observe(flat["next", "episode_return"][done].reshape(-1), before=before, frames=frames)
+    metrics = {}
+    if done.any():
+        metrics["train/dense_return"] = flat["next", "episode_return"][done].mean()
+        metrics["train/delayed_reward"] = flat["next", "reward"][done].mean()
+        metrics["train/episode_length"] = flat["step_count"][done].float().mean() + 1
+    if ("next", "intrinsic_reward") in flat.keys(True):
+        metrics["train/intrinsic_reward"] = flat["next", "intrinsic_reward"].mean()
+    return metrics
+
+
+# ----------------------------------------------------------------------------- the two learning blocks
+
+
+class ActorLRDecay:
+    """A stepwise decay of the actor's learning rate, a function of frames (a resume continues it):
+    ``lr * rate ** (frames // every_frames)`` (``optim.actor_lr_decay``; Kostrikov et al.'s DAC)."""
+
+    def __init__(self, optimizer, lr: float, *, rate: float, every_frames: int) -> None:
+        self.optimizer, self.lr, self.rate, self.every_frames = optimizer, lr, rate, every_frames
+
+    def __call__(self, frames: int) -> dict:
+        lr = self.lr * self.rate ** (frames // self.every_frames)
+        for group in self.optimizer.param_groups:
+            group["lr"] = lr
+        return {"sail/actor_lr": lr}
+
+
+class TD3Block:
+    """Algorithm 1's policy update: every ``every_frames`` frames after warm-up, ``updates`` gradient
+    steps on batches of ``batch_size`` rows, ``round(alpha * batch_size)`` of them the teacher's.
+
+    Neither the buffers nor D change inside a block, so its batches are drawn, and rewarded by
+    the current D, in one call (``batches.sample``, under ``precision``).
+
+    Args:
+        batches: a :class:`~torchrl_sail.MixedReplayBuffer` of the teacher and replay buffers whose
+            transform writes the reward.
+        update: ``update(batch, update_actor) -> metrics``, one gradient step (``utils.make_update``).
+        policy_delay, actor_updates_after: the actor steps at every ``policy_delay``-th gradient step
+            from step ``actor_updates_after`` on.
+        reward_tag: the metric that logs the block's mean reward.
+        lr_decay: an :class:`ActorLRDecay`, run before each block (``None``: a constant rate).
+        drift: an :class:`~utils.ActorDrift` measured over each block (``None`` for SAC).
+        saturation: ``saturation(batch) -> metrics`` on the block's last batch while it holds agent rows.
+        gradient_steps: the steps done before (a resumed run's).
+    """
+
+    def __init__(
+        self,
+        batches,
+        update,
+        *,
+        batch_size: int,
+        every_frames: int,
+        start_frames: int,
+        updates: int,
+        policy_delay: int,
+        actor_updates_after: int,
+        reward_tag: str,
+        precision=None,
+        lr_decay: ActorLRDecay | None = None,
+        drift: ActorDrift | None = None,
+        saturation=None,
+        gradient_steps: int = 0,
+    ) -> None:
+        self.batches, self.update = batches, update
+        self.batch_size, self.every_frames, self.start_frames, self.updates = (
+            batch_size,
+            every_frames,
+            start_frames,
+            updates,
+        )
+        self.policy_delay, self.actor_updates_after, self.reward_tag = policy_delay, actor_updates_after, reward_tag
+        self.precision = precision if precision is not None else contextlib.nullcontext()
+        self.lr_decay, self.drift, self.saturation = lr_decay, drift, saturation
+        self.gradient_steps = gradient_steps
+
+    def __call__(self, before: int, frames: int, alpha: float) -> dict:
+        num_updates = crossings(self.every_frames, self.start_frames, before, frames) * self.updates
+        if not num_updates:
+            return {}
+        metrics = self.lr_decay(before) if self.lr_decay is not None else {}
+        with timeit("sample"), self.precision:  # the D reward too, with precision=bf16
+            block = self.batches.sample(self.batch_size, teacher_fraction=alpha, num_batches=num_updates)
+        metrics[self.reward_tag] = block["next", "reward"].mean()
+        if self.drift is not None:
+            self.drift.start(block[0])
+        last = {}
+        for batch in block.unbind(0):
+            self.gradient_steps += 1
+            update_actor = (
+                self.gradient_steps % self.policy_delay == 0 and self.gradient_steps >= self.actor_updates_after
+            )
+            with timeit("update"):
+                last.update(self.update(batch, update_actor=update_actor))
+        metrics.update({f"sail/{key}": value for key, value in last.items()})
+        if self.drift is not None:
+            metrics.update(self.drift.measure())
+        if alpha < 1 and self.saturation is not None:  # the batch holds agent rows
+            metrics.update(self.saturation(batch))
+        return metrics
+
+
+def make_td3_block(cfg: DictConfig, batches, update, actor, loss, optimizers: dict, *, gradient_steps: int):
+    """The TD3 (or SAC) block of ``cfg``: the authors' cadence, precision, actor lr decay and diagnostics."""
+    o, td3 = cfg.optim, cfg.algo.learner == "td3"
+    decay = o.actor_lr_decay
+    return TD3Block(
+        batches,
+        update,
+        batch_size=o.batch_size,
+        every_frames=o.train_every_frames,
+        start_frames=cfg.collector.init_random_frames,
+        updates=o.updates_per_train,
+        policy_delay=o.policy_delay,
+        actor_updates_after=o.actor_updates_after,
+        reward_tag="sail/env_reward_mean" if cfg.algo.reward.source == "env" else "sail/d_reward_mean",
+        precision=torch.autocast(torch.device(cfg.device).type, dtype=torch.bfloat16, enabled=o.precision == "bf16"),
+        lr_decay=None
+        if decay is None
+        else ActorLRDecay(optimizers["actor"], o.lr, rate=decay.rate, every_frames=decay.every_frames),
+        drift=ActorDrift(actor, loss) if td3 else None,
+        saturation=(lambda batch: actor_saturation(cfg, actor, batch)) if td3 else None,
+        gradient_steps=gradient_steps,
+    )
+
+
+class PredictorUpdate:
+    """SAIL-RND: after each D step, RND's predictor learns the agent's states of the same batch
+    (its running observation statistics are the training env's, created at the env's first step)."""
+
+    def __init__(self, rnd, rnd_loss, optimizer) -> None:
+        self.rnd, self.rnd_loss, self.optimizer = rnd, rnd_loss, optimizer
+
+    def __call__(self, batch) -> dict:
+        self.rnd_loss.obs_rms = self.rnd.obs_rms
+        out = self.rnd_loss(batch[~batch["is_teacher"]])
+        out["loss_predictor"].backward()
+        self.optimizer.step()
+        self.optimizer.zero_grad(set_to_none=True)
+        return {"rnd/loss_predictor": out["loss_predictor"].detach()}
+
+
+class DiscriminatorBlock:
+    """Algorithm 1's discriminator update: every ``every_frames`` frames after warm-up, ``steps`` D
+    steps on batches of ``batch_size`` teacher + ``batch_size`` agent rows (``utils.discriminator_block``).
+    ``steps=0`` for a method without a D (its reward is the env's)."""
+
+    def __init__(
+        self, cfg: DictConfig, batches, d_loss, optimizer, *, every_frames, start_frames, steps, batch_size, after_step
+    ) -> None:
+        self.cfg, self.batches, self.d_loss, self.optimizer = cfg, batches, d_loss, optimizer
+        self.every_frames, self.start_frames, self.steps, self.batch_size = (
+            every_frames,
+            start_frames,
+            steps,
+            batch_size,
+        )
+        self.after_step = after_step
+
+    def __call__(self, before: int, frames: int) -> dict:
+        num_steps = crossings(self.every_frames, self.start_frames, before, frames) * self.steps
+        if not num_steps:
+            return {}
+        with timeit("sample"):
+            block = self.batches.sample(2 * self.batch_size, teacher_fraction=0.5, num_batches=num_steps)
+        with timeit("discriminator"):
+            return discriminator_block(self.cfg, self.d_loss, self.optimizer, block, self.after_step)
+
+
+def make_discriminator_block(cfg: DictConfig, batches, d_loss, optimizers: dict, rnd=None, rnd_loss=None):
+    d = cfg.optim.discriminator
+    return DiscriminatorBlock(
+        cfg,
+        batches,
+        d_loss,
+        optimizers["discriminator"],
+        every_frames=d.every_frames,
+        start_frames=cfg.collector.init_random_frames,
+        steps=d.steps if cfg.algo.reward.source != "env" else 0,
+        batch_size=d.batch_size,
+        after_step=PredictorUpdate(rnd, rnd_loss, optimizers["rnd"]) if rnd is not None else None,
+    )
+
+
+# ----------------------------------------------------------------------------- evaluation
+
+
+class Evaluations:
+    """Every ``eval.every_frames`` frames: deterministic episodes of the actor ``eval.actor`` names,
+    kept in ``run["evals"]`` (``eval/return``), and with ``eval.other_actor`` of the other actor
+    (``eval/return_<online|target>``: same seeds, an env of its own); every
+    ``eval.video_every_frames`` frames a video of one episode.
+
+    Args:
+        envs: ``{"evaluated": env, "other": env or None}``, and ``"video"``: a render env with ``video``.
+        video: ``video(env, actor, frames)`` records and logs one episode (``None``: no videos).
+    """
+
+    def __init__(self, cfg: DictConfig, actor, loss, run: dict, teacher_return: float, envs: dict, video) -> None:
+        self.cfg, self.actor, self.loss, self.run, self.teacher_return = cfg, actor, loss, run, teacher_return
+        self.envs, self.video = envs, video
+        self.other = "online" if cfg.eval.actor == "target" else "target"
+
+    def __call__(self, before: int, frames: int) -> dict:
+        cfg, metrics = self.cfg, {}
+        if crossings(cfg.eval.every_frames, 0, before, frames):
+            metrics["eval/return"] = record_evaluation(
+                self.envs["evaluated"], self.actor, self.loss, cfg, self.run, frames, self.teacher_return
+            )
+            if self.envs["other"] is not None:
+                metrics[f"eval/return_{self.other}"] = evaluate_actor(
+                    self.envs["other"], self.actor, self.loss, self.other, cfg.eval.episodes, cfg.env.max_episode_steps
+                )
+        if crossings(cfg.eval.video_every_frames, 0, before, frames):
+            self.video(self.envs["video"], self.actor, frames)
+        return metrics
+
+
+def make_eval_envs(cfg: DictConfig, make_env) -> dict:
+    """The evaluations' envs, ``{"evaluated": env, "other": env or None}``: the other actor's episodes
+    (``eval.other_actor``) start where the evaluated one's do (same seed, an env of its own)."""
+    return {
+        "evaluated": make_env(cfg, cfg.seed + 10_000),
+        "other": make_env(cfg, cfg.seed + 10_000) if cfg.eval.other_actor else None,
+    }
+
+
+def make_evaluations(cfg: DictConfig, envs: dict, actor, loss, run: dict, teacher_return: float, loggers, run_dir):
+    """The evaluations of ``cfg`` on ``envs`` (:func:`make_eval_envs`). With ``eval.video_every_frames``
+    the render env is built here, before training: a missing GL backend fails now."""
+    video = None
+    if cfg.eval.video_every_frames:
+        envs = {**envs, "video": make_render_env(cfg, cfg.seed + 30_000, cfg.eval.video_size)}
+
+        def video(env, actor, frames):
+            log_video(loggers, env, actor, cfg, run_dir, frames)
+
+    return Evaluations(cfg, actor, loss, run, teacher_return, envs, video)

@@ -1,0 +1,320 @@
+"""The training loop's steps (``examples/loop.py``) and the run's clock and checkpoint (``examples/run_utils.py``),
+each on its own, with stand-ins for the buffers, losses and envs they drive."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+import torch
+from tensordict import TensorDict
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "examples"))
+
+import loop  # noqa: E402
+from run_utils import RunCheckpoint, RunClock  # noqa: E402
+from torchrl import timeit  # noqa: E402
+
+from torchrl_sail import AbsorbingStateTransform, AlphaScheduler, NStepTransform  # noqa: E402
+
+
+def collected(num_envs: int = 2, steps: int = 3, done_at=None) -> TensorDict:
+    """A collector batch ``[num_envs, steps]``: observation ``(env * 100 + step, 0)`` (the second column is
+    where an absorbing-state indicator goes), its return the first column, one terminal per ``done_at``."""
+    value = (torch.arange(num_envs)[:, None] * 100 + torch.arange(steps)[None]).float().unsqueeze(-1)
+    obs = torch.cat([value, torch.zeros_like(value)], -1)
+    done = torch.zeros(num_envs, steps, 1, dtype=torch.bool)
+    for env, step in done_at or []:
+        done[env, step] = True
+    return TensorDict(
+        {
+            "observation": obs,
+            "action": torch.ones(num_envs, steps, 1),
+            "step_count": torch.arange(steps).expand(num_envs, steps).unsqueeze(-1),
+            "next": {
+                "observation": obs + torch.tensor([1.0, 0.0]),
+                "reward": torch.zeros(num_envs, steps, 1),
+                "done": done,
+                "terminated": done.clone(),
+                "truncated": torch.zeros_like(done),
+                "episode_return": value.clone(),
+            },
+        },
+        batch_size=[num_envs, steps],
+    )
+
+
+class Buffer(list):
+    def extend(self, rows):
+        self.append(rows.clone())
+
+
+def test_store_puts_every_row_in_every_buffer():
+    replay, recent = Buffer(), Buffer()
+    loop.TransitionStore([replay, recent])(collected())
+    assert len(replay) == len(recent) == 1
+    rows = replay[0]
+    assert rows.shape == (6,) and rows["observation"][:, 0].tolist() == [0, 1, 2, 100, 101, 102]
+    assert "step_count" not in rows.keys()  # only the transition's own entries are stored
+    assert (recent[0] == rows).all()
+
+
+def test_store_adds_absorbing_transitions_after_terminals():
+    replay = Buffer()
+    store = loop.TransitionStore([replay], absorbing=AbsorbingStateTransform())
+    store(collected(done_at=[(0, 1), (1, 2)]))
+    # 6 steps + one absorbing transition per terminal
+    rows = replay[0]
+    assert rows.shape == (8,)
+    # each terminal row now leads into s_a = (0, 1), and an (s_a, s_a) row follows it
+    assert rows["observation"][:, 1].tolist() == [0, 0, 1, 0, 0, 0, 0, 1]
+    assert rows["next", "observation"][:, 1].tolist() == [0, 1, 1, 0, 0, 0, 1, 1]
+    assert rows["observation"][:, 0].tolist() == [0, 1, 0, 2, 100, 101, 102, 0]
+
+
+def test_store_waits_for_the_nstep_window():
+    replay = Buffer()
+    store = loop.TransitionStore([replay], nstep=NStepTransform(2, 0.99))
+    store(collected(steps=3))
+    # per stream, a step is stored once the 2 steps after it are collected: step 0 of each of 2 streams
+    assert replay[0].shape == (2,)
+    assert replay[0]["observation"][:, 0].tolist() == [0, 100]
+    store(collected(steps=3))
+    assert replay[1].shape == (6,)
+
+
+def test_store_stores_nothing_while_every_row_waits():
+    replay = Buffer()
+    loop.TransitionStore([replay], nstep=NStepTransform(5, 0.99))(collected(steps=3))
+    assert replay == []
+
+
+class Teacher:
+    def __init__(self, promote_at: int) -> None:
+        self.calls, self.promote_at = 0, promote_at
+        self.writer = SimpleNamespace(num_promoted=0)
+
+    def extend(self, data):
+        self.calls += 1
+        self.writer.num_promoted = int(self.calls >= self.promote_at)
+
+
+def test_teacher_update_promotes_then_switches_alpha_once():
+    teacher = Teacher(promote_at=2)
+    update = loop.TeacherUpdate(teacher, AlphaScheduler(SimpleNamespace(alpha=1.0)), adaptive=True)
+    assert update(None, 1000) == (0.5, {})
+    assert update(None, 2000) == (0.0, {"alpha_switch_frame": 2000})
+    assert update(None, 3000) == (0.0, {})
+    assert teacher.calls == 3
+
+
+def test_teacher_update_without_adaptation_leaves_the_teacher_alone():
+    teacher = Teacher(promote_at=1)
+    update = loop.TeacherUpdate(teacher, AlphaScheduler(SimpleNamespace(alpha=1.0)), adaptive=False)
+    assert update(None, 1000) == (0.5, {}) and teacher.calls == 0
+
+
+def test_finished_episodes_feeds_the_best_policy_and_logs_the_means():
+    seen = []
+    best = SimpleNamespace(observe=lambda returns, before, frames: seen.append((returns.tolist(), before, frames)))
+    metrics = loop.finished_episodes(collected(done_at=[(0, 1), (1, 2)]), best, before=500, frames=506)
+    assert seen == [([1.0, 102.0], 500, 506)]  # the returns of the episodes that ended (their observations here)
+    assert metrics["train/dense_return"].item() == pytest.approx(51.5)
+    assert metrics["train/episode_length"].item() == pytest.approx((2 + 3) / 2)  # step_count + 1
+    assert loop.finished_episodes(collected(), best, before=0, frames=6) == {}
+
+
+def test_actor_lr_decay_is_a_function_of_frames():
+    optimizer = torch.optim.Adam([torch.zeros(1, requires_grad=True)], lr=1.0)
+    decay = loop.ActorLRDecay(optimizer, 1e-3, rate=0.5, every_frames=100_000)
+    assert decay(99_999) == {"sail/actor_lr": 1e-3}
+    assert decay(250_000) == {"sail/actor_lr": 2.5e-4} and optimizer.param_groups[0]["lr"] == 2.5e-4
+
+
+class Batches:
+    """Stands in for MixedReplayBuffer: blocks of ``[num_batches, batch_size]`` rows, reward = row index."""
+
+    def __init__(self) -> None:
+        self.calls = []
+
+    def sample(self, batch_size, *, teacher_fraction, num_batches):
+        self.calls.append((batch_size, teacher_fraction, num_batches))
+        reward = torch.arange(num_batches * batch_size, dtype=torch.float32).reshape(num_batches, batch_size, 1)
+        return TensorDict({"next": {"reward": reward}}, batch_size=[num_batches, batch_size])
+
+
+def td3_block(**kwargs):
+    steps = []
+
+    def update(batch, update_actor):
+        steps.append(update_actor)
+        return {"loss_qvalue": torch.tensor(float(len(steps)))}
+
+    options = dict(
+        batch_size=4,
+        every_frames=1000,
+        start_frames=2000,
+        updates=3,
+        policy_delay=2,
+        actor_updates_after=0,
+        reward_tag="sail/d_reward_mean",
+    )
+    options.update(kwargs)
+    batches = Batches()
+    return loop.TD3Block(batches, update, **options), batches, steps
+
+
+def test_td3_block_runs_at_its_cadence_after_warmup():
+    block, batches, steps = td3_block()
+    assert block(0, 1500, alpha=0.5) == {} and batches.calls == []  # warm-up
+    metrics = block(1500, 3000, alpha=0.5)  # crosses 2000 and 3000: two blocks' worth
+    assert batches.calls == [(4, 0.5, 6)]
+    assert steps == [False, True, False, True, False, True]  # every policy_delay-th step moves the actor
+    assert metrics["sail/d_reward_mean"].item() == pytest.approx(sum(range(24)) / 24)
+    assert metrics["sail/loss_qvalue"].item() == 6.0  # the block's last step
+    assert block.gradient_steps == 6
+
+
+def test_td3_block_continues_a_resumed_count_and_delays_the_actor():
+    block, _, steps = td3_block(gradient_steps=5, actor_updates_after=8, policy_delay=1)
+    block(2500, 3000, alpha=0.0)
+    assert steps == [False, False, True] and block.gradient_steps == 8  # steps 6, 7, 8
+
+
+def test_td3_block_decays_the_lr_and_measures_saturation_on_agent_rows_only():
+    seen = []
+    block, _, _ = td3_block(
+        lr_decay=lambda frames: seen.append(frames) or {"sail/actor_lr": 1.0},
+        saturation=lambda batch: {"actor/saturation": torch.tensor(0.25)},
+    )
+    metrics = block(2500, 3000, alpha=0.5)
+    assert seen == [2500] and metrics["sail/actor_lr"] == 1.0 and "actor/saturation" in metrics
+    assert "actor/saturation" not in block(3500, 4000, alpha=1.0)  # a teacher-only batch
+
+
+class DLoss:
+    """Stands in for DiscriminatorLoss: a loss on one parameter, accuracy 0.6 on each side."""
+
+    def __init__(self) -> None:
+        self.weight = torch.nn.Parameter(torch.zeros(1))
+
+    def __call__(self, batch):
+        return {
+            "loss_discriminator": (self.weight - 1).pow(2).sum(),
+            "accuracy_teacher": torch.tensor(0.6),
+            "accuracy_agent": torch.tensor(0.6),
+        }
+
+
+def d_block(steps: int, after_step=None, max_accuracy=None):
+    d_loss, batches = DLoss(), Batches()
+    optimizer = torch.optim.SGD([d_loss.weight], lr=0.1)
+    cfg = SimpleNamespace(optim=SimpleNamespace(discriminator=SimpleNamespace(max_accuracy=max_accuracy)))
+    block = loop.DiscriminatorBlock(
+        cfg,
+        batches,
+        d_loss,
+        optimizer,
+        every_frames=500,
+        start_frames=1000,
+        steps=steps,
+        batch_size=2,
+        after_step=after_step,
+    )
+    return block, batches, d_loss
+
+
+def test_discriminator_block_steps_at_its_cadence():
+    calls = []
+    block, batches, d_loss = d_block(steps=2, after_step=lambda batch: calls.append(batch.shape) or {"rnd/x": 1.0})
+    assert block(0, 900) == {} and batches.calls == []  # warm-up
+    metrics = block(1000, 2000)  # crosses 1500 and 2000
+    assert batches.calls == [(4, 0.5, 4)] and len(calls) == 4  # 2 teacher + 2 agent rows per step
+    # 4 SGD steps on (w - 1)^2 from 0 at lr 0.1: w = 1 - 0.8^4
+    assert d_loss.weight.item() == pytest.approx(1 - 0.8**4)
+    assert metrics["d/skipped"] == 0.0 and metrics["rnd/x"] == 1.0
+
+
+def test_discriminator_block_without_steps_samples_nothing():
+    block, batches, _ = d_block(steps=0)
+    assert block(1000, 5000) == {} and batches.calls == []
+
+
+def test_discriminator_block_skips_steps_beyond_max_accuracy():
+    block, _, d_loss = d_block(steps=1, max_accuracy=0.5)
+    assert block(1000, 1500)["d/skipped"] == 1.0 and d_loss.weight.item() == 0.0
+
+
+def test_evaluations_at_their_cadence_with_the_other_actor_and_videos(monkeypatch):
+    evaluated, other, videos = [], [], []
+    monkeypatch.setattr(
+        loop,
+        "record_evaluation",
+        lambda env, actor, loss, cfg, run, frames, teacher: evaluated.append((env, frames)) or 10.0,
+    )
+    monkeypatch.setattr(
+        loop, "evaluate_actor", lambda env, actor, loss, which, episodes, steps: other.append((env, which)) or 20.0
+    )
+    cfg = SimpleNamespace(
+        eval=SimpleNamespace(actor="target", every_frames=1000, video_every_frames=2000, episodes=3),
+        env=SimpleNamespace(max_episode_steps=1000),
+    )
+    envs = {"evaluated": "e", "other": "o", "video": "v"}
+    evaluations = loop.Evaluations(cfg, None, None, {}, 0.0, envs, lambda env, actor, frames: videos.append(frames))
+    assert evaluations(0, 500) == {}
+    assert evaluations(500, 1000) == {"eval/return": 10.0, "eval/return_online": 20.0}
+    evaluations(1500, 2000)
+    assert evaluated == [("e", 1000), ("e", 2000)] and other == [("o", "online")] * 2 and videos == [2000]
+
+
+def test_run_clock_starts_the_timed_part_after_warmup():
+    batches = [torch.zeros(1000) for _ in range(3)]
+
+    class Collector(list):
+        total_frames = 3000
+
+    clock = RunClock({"wall_seconds": 7.0}, 0, warmup=1000)
+    seen = []
+    for data in clock.batches(Collector(batches), 0):
+        seen.append(clock.train_clock is not None)
+        with timeit("work"):
+            pass
+    # timed from the batch collected after 1000 frames: the 2nd and 3rd, then the call that finds none
+    assert seen == [False, True, True] and clock.train_clock[1] == 1000
+    clock.stop()
+    summary = clock.summary(3000)
+    assert summary["train_frames"] == 2000 and summary["counts"]["collect"] == 3 and summary["counts"]["work"] == 2
+    assert clock.wall_seconds() >= 7.0
+
+
+def test_run_clock_has_no_batch_for_a_finished_run():
+    class Collector(list):
+        total_frames = 0
+
+    assert list(RunClock({"wall_seconds": None}, 3000).batches(Collector([1]), 3000)) == []
+
+
+def test_run_checkpoint_checks_saves_then_writes_what_must_match(tmp_path):
+    order = []
+    run = {"evals": [], "frames": 0}
+
+    def divergence(metrics, frame, checkpoint):
+        order.append(("check", frame))
+
+    checkpoint = SimpleNamespace(save=lambda path: order.append(("save", dict(run)["gradient_steps"])))
+    clock = SimpleNamespace(wall_seconds=lambda: 3.0)
+    save = RunCheckpoint(
+        checkpoint,
+        tmp_path,
+        run,
+        loggers={},
+        divergence=divergence,
+        clock=clock,
+        after_save=[lambda: order.append(("best_policy",))],
+    )
+    save({}, frames=2000, gradient_steps=40)
+    assert order == [("check", 2000), ("save", 40), ("best_policy",)]
+    assert run["frames"] == 2000 and run["wall_seconds"] == 3.0
