@@ -18,7 +18,7 @@ name (``shipped`` for the env's default teacher). Writes to ``--out``:
   - frames to pass the teacher: the frames at its first evaluation whose return is above the
     teacher's (``summary.json``'s ``passed_teacher_at_frame``, else from the curve; None if never);
   - fall share: of its evaluations after the first one above the teacher's return (that one
-    excluded), those below it (``torchrl_sail.runs.fall_share`` of the eval curve; None if it
+    excluded), those below it (``torchrl_sail.harness.fall_share`` of the eval curve; None if it
     never passed);
   - best policy: ``summary.json``'s ``best_policy.eval_return``, the evaluation of the policy it
     kept by its own training returns (absent in runs that did not evaluate one, older runs).
@@ -86,7 +86,7 @@ import numpy as np
 import yaml
 
 # read_scalar: logs/scalars/<tag>.csv or scalars.csv
-from torchrl_sail.runs import fall_share, read_scalar, write_atomic
+from torchrl_sail.harness import fall_share, read_scalar, write_atomic
 
 BENCHMARKS = Path(__file__).resolve().parent
 REPO = BENCHMARKS.parent
@@ -203,7 +203,7 @@ class Run:
 
     @property
     def fall_share(self) -> dict | None:
-        """:func:`~torchrl_sail.runs.fall_share` of its eval curve (the headline's evaluations) and its
+        """:func:`~torchrl_sail.harness.fall_share` of its eval curve (the headline's evaluations) and its
         teacher return: None if it never passed the teacher (or has no curve or teacher return)."""
         teacher = self.teacher_return
         return None if teacher is None else fall_share(self.curve, teacher)

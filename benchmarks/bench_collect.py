@@ -38,7 +38,7 @@ from tensordict import TensorDict
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import Compose, EnvBase, ExplorationType, GymEnv, TransformedEnv, set_exploration_type
 
-from torchrl_sail.runs import cpu_flags, cpu_model, provenance
+from torchrl_sail.harness import cpu_flags, cpu_model, provenance
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "examples"))

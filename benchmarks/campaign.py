@@ -54,7 +54,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from run_matrix import REPO, Teacher, record_matrix, script_for  # noqa: E402
 
-from torchrl_sail._compat import native_bf16_matmul  # noqa: E402
+from torchrl_sail.harness import native_bf16_matmul  # noqa: E402
 
 # The authors' one-trajectory teachers (their settings.py optimal_score names the file).
 PAPER_TEACHERS = {

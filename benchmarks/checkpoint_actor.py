@@ -29,7 +29,7 @@ import sys
 from pathlib import Path
 
 import torch
-from tensordict import TensorDictBase
+from tensordict import TensorDict, TensorDictBase
 from torchrl.checkpoint import Checkpoint
 
 REPO = Path(__file__).resolve().parents[1]
@@ -49,8 +49,7 @@ from utils import (  # noqa: E402
     make_teacher,
 )
 
-from torchrl_sail._compat import tanh_bounds, tanh_map  # noqa: E402
-from torchrl_sail.runs import checkpoint_dir  # noqa: E402
+from torchrl_sail.harness import checkpoint_dir  # noqa: E402
 
 #: |a| within this share of a bound, in units of the half-width of the action box
 SATURATED = 0.99
@@ -90,12 +89,14 @@ def summarize(loss, rows: TensorDictBase) -> dict[str, float]:
         return {"count": 0}
     body, tanh = loss.actor_network.module[0], loss.actor_network.module[1]  # make_agent's MLP and TanhModule
     critic, action_key = loss.qvalue_network, loss.tensor_keys.action
-    low, high = tanh_bounds(tanh, loss.actor_network_params[("module", "1")])
+    box = tanh.spec[tanh.out_keys[0]].space  # the action spec TanhModule maps into
+    low, high = box.low, box.high
     centre, half = (high + low) / 2, (high - low) / 2
-    with loss.actor_network_params.to_module(loss.actor_network), torch.no_grad():
-        x = body(rows.select(*body.in_keys).copy())[body.out_keys[0]]
-    x.requires_grad_(True)
-    pi = tanh_map(tanh, x, low, high)
+    with loss.actor_network_params.to_module(loss.actor_network):
+        with torch.no_grad():
+            x = body(rows.select(*body.in_keys).copy())[body.out_keys[0]]
+        x.requires_grad_(True)
+        pi = tanh(TensorDict({tanh.in_keys[0]: x}, batch_size=x.shape[:1]))[tanh.out_keys[0]]
     pi_leaf = pi.detach().requires_grad_(True)
 
     def q(action: torch.Tensor) -> torch.Tensor:

@@ -27,7 +27,7 @@ sys.path.insert(0, str(REPO / "examples"))
 from evaluate import load_run  # noqa: E402
 from utils import make_agent, make_discriminator, make_env, make_losses, make_optimizers  # noqa: E402
 
-from torchrl_sail.runs import checkpoint_dir  # noqa: E402
+from torchrl_sail.harness import checkpoint_dir  # noqa: E402
 
 HEADER = "| group | tensor | shape | denormal | share |\n|---|---|---|---|---|"
 GROUPS = ("loss", "optim_actor", "optim_critic")

@@ -34,7 +34,7 @@ sys.path.insert(0, str(REPO / "examples"))
 from evaluate import load_run  # noqa: E402
 from utils import FilledRows, make_absorbing, make_discriminator, make_env, make_replay, make_reward, make_teacher  # noqa: E402
 
-from torchrl_sail.runs import checkpoint_dir  # noqa: E402
+from torchrl_sail.harness import checkpoint_dir  # noqa: E402
 
 HEADER = "| rows | count | D | logit | D reward | D reward std |\n|---|---|---|---|---|---|"
 

@@ -8,7 +8,7 @@ A run folder is a live run (``logs/scalars/``) or a results copy (``scalars.csv`
 run, ``--teacher-return``). Its evaluations logged the online actor and, with
 ``eval.other_actor=true``, both actors (``eval/return`` and ``eval/return_target`` or
 ``eval/return_online``; otherwise the target actor's columns read n/a). Per run: the fall share of
-each actor (:func:`torchrl_sail.runs.fall_share`), and how often one fell where the other did not.
+each actor (:func:`torchrl_sail.harness.fall_share`), and how often one fell where the other did not.
 Then, pooled over the runs, each diagnostic averaged over the ``--window`` frames before an
 evaluation, at the online actor's falls against its other evaluations after its first pass:
 ``actor/change`` and ``actor/target_gap`` (how far a TD3 block moves the actor, how far it is from
@@ -26,7 +26,7 @@ from pathlib import Path
 
 import yaml
 
-from torchrl_sail.runs import fall_share, read_scalar, write_atomic
+from torchrl_sail.harness import fall_share, read_scalar, write_atomic
 
 DIAGNOSTICS = (
     "actor/change",

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import yaml
 
-from torchrl_sail.runs import COLLECTED_SCALARS, write_atomic
+from torchrl_sail.harness import COLLECTED_SCALARS, write_atomic
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
 from run_utils import crossings  # noqa: E402  (the example's cadence rule, so the two cannot drift)

@@ -389,7 +389,7 @@ def machine(device: str = "cpu") -> dict:
         except importlib.metadata.PackageNotFoundError:
             return "not installed"
 
-    from torchrl_sail.runs import cpu_flags, cpu_model
+    from torchrl_sail.harness import cpu_flags, cpu_model
 
     return {
         "cpu_model": cpu_model(),

@@ -9,7 +9,7 @@ four shipped ones (``examples/teachers``): the candidate (teacher labels ``paper
 runs' ``eval/return_online``: training does not depend on the evaluated actor) and the defaults
 (labels ``paper`` and ``shipped``, SAIL), with DAC (label ``paper``) beside them. Per run: whether
 an evaluation passed the teacher, the last-5 mean and the fall share
-(:func:`torchrl_sail.runs.fall_share`). The verdict is ``pending`` until every run the rule needs
+(:func:`torchrl_sail.harness.fall_share`). The verdict is ``pending`` until every run the rule needs
 is finished.
 """
 
@@ -24,7 +24,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from aggregate import HEADLINE_EVALS, find_run_folders, load_run  # noqa: E402
 
-from torchrl_sail.runs import fall_share, read_scalar, write_atomic  # noqa: E402
+from torchrl_sail.harness import fall_share, read_scalar, write_atomic  # noqa: E402
 
 SEEDS = (0, 1, 2, 3, 4)
 FRAMES = 300_000

@@ -3,7 +3,7 @@
     python benchmarks/windows.py RUN_DIR [RUN_DIR ...] [--window 20000]
 
 Reads a run's ``logs/scalars`` or its results copy (``scalars.csv``) with
-:func:`torchrl_sail.runs.read_scalar` and prints, for each window ``(k * W, (k + 1) * W]``,
+:func:`torchrl_sail.harness.read_scalar` and prints, for each window ``(k * W, (k + 1) * W]``,
 one Markdown row (the first window also holds frame 0, e.g. an offline run's one evaluation):
 the mean evaluation return, the highest logged training return (``train/dense_return``: the mean
 dense return of the episodes that ended in the last collector batch with an ending before each
@@ -25,7 +25,7 @@ import math
 from pathlib import Path
 from statistics import mean
 
-from torchrl_sail.runs import read_scalar
+from torchrl_sail.harness import read_scalar
 
 # (column, tag, how a window's values become one number)
 COLUMNS = (

@@ -40,7 +40,7 @@ from utils import make_agent, make_env, make_teacher
 from video import log_video, make_render_env
 
 from torchrl_sail import DivergenceCheck
-from torchrl_sail.runs import add_evaluation, checkpoint_dir, start_or_resume
+from torchrl_sail.harness import add_evaluation, checkpoint_dir, start_or_resume
 
 register_config_schema()  # the typed schema conf/config.yaml extends: Hydra checks every value against it
 

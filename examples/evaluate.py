@@ -41,7 +41,7 @@ from utils import copy_observation_norm, make_agent, make_discriminator, make_en
 from video import make_render_env, record_episode, video_fps, write_video
 
 from torchrl_sail import observation_normalizer
-from torchrl_sail.runs import BEST_POLICY, CONFIG, checkpoint_dir, write_atomic
+from torchrl_sail.harness import BEST_POLICY, CONFIG, checkpoint_dir, write_atomic
 
 register_config_schema()
 

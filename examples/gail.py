@@ -71,7 +71,7 @@ from utils import (
 from video import log_video, make_render_env
 
 from torchrl_sail import TRANSITION_KEYS, DivergenceCheck, MixedReplayBuffer, observation_normalizer
-from torchrl_sail.runs import start_or_resume
+from torchrl_sail.harness import start_or_resume
 
 register_config_schema()  # the typed schema conf/config.yaml extends: Hydra checks every value against it
 

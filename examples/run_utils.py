@@ -1,5 +1,5 @@
 """What every training loop does besides building its pieces: seeds, cadences, evaluations, logs
-and the run's summary (the run folder's life cycle itself is :mod:`torchrl_sail.runs`)."""
+and the run's summary (the run folder's life cycle itself is :mod:`torchrl_sail.harness`)."""
 
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ from torchrl import timeit
 from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.record.loggers import get_logger
 
-from torchrl_sail.runs import (
+from torchrl_sail.harness import (
     actor_summary,
     add_evaluation,
     checkpoint_dir,
@@ -61,7 +61,7 @@ def set_cpu_math(threads: int, flush_denormal: bool) -> None:
 def start_run(cfg: DictConfig, script: str) -> tuple[Path, bool | None]:
     """Check the config for ``script``, set threads, denormals and seeds, and say how the run folder starts.
 
-    Returns the run folder (Hydra's output directory) and :func:`~torchrl_sail.runs.resume_mode`'s
+    Returns the run folder (Hydra's output directory) and :func:`~torchrl_sail.harness.resume_mode`'s
     answer; ``None`` means a finished run under ``resume=auto``, which the caller skips.
     """
     check_script(cfg, script)
@@ -88,7 +88,7 @@ def crossings(every: int, start: int, before: int, now: int) -> int:
 
 
 def make_run(cfg: DictConfig) -> dict:
-    """A fresh run state (``torchrl_sail.runs.new_run``) with this config's identity: env, algo, seed, teacher."""
+    """A fresh run state (``torchrl_sail.harness.new_run``) with this config's identity: env, algo, seed, teacher."""
     return new_run(env=cfg.env.name, algo=cfg.algo.name, seed=cfg.seed, teacher=cfg.teacher.path)
 
 
@@ -369,7 +369,7 @@ def write_run_summary(
     alpha_switch_frame: int | None = None,
     **results,
 ) -> None:
-    """The finished run's ``learning_curve.png`` and ``summary.json`` (``torchrl_sail.runs``), for every
+    """The finished run's ``learning_curve.png`` and ``summary.json`` (``torchrl_sail.harness``), for every
     training script: the run's env, algo, seed, teacher and budget; from ``run``, its counters, its
     evaluations (last, best, the first to pass the teacher, the fall share) and its starts; from
     ``clock``, this start's speeds; then ``results`` (what only this script has), memory and provenance."""

@@ -73,7 +73,7 @@ from utils import (
 )
 
 from torchrl_sail import DivergenceCheck, MixedReplayBuffer
-from torchrl_sail.runs import BEST_POLICY, start_or_resume
+from torchrl_sail.harness import BEST_POLICY, start_or_resume
 
 register_config_schema()  # the typed schema conf/config.yaml extends: Hydra checks every value against it
 

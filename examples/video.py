@@ -19,7 +19,7 @@ from mujoco_gl import GL_HELP
 from torchrl.envs import ExplorationType, set_exploration_type
 from utils import make_env
 
-from torchrl_sail._compat import render_fps
+from torchrl_sail.harness import render_fps
 
 
 def make_render_env(cfg, seed: int, size):

@@ -1,6 +1,6 @@
 """Runs the training scripts (``examples/sail_td3.py``, ``gail.py``, ``bc.py``) and ``evaluate.py`` in a
 process of their own, as a user would (shared by the example tests). Run folders are read with
-``torchrl_sail.runs.read_scalar`` (re-exported here).
+``torchrl_sail.harness.read_scalar`` (re-exported here).
 
 A run is a fork of an interpreter that has imported torch and TorchRL already (``fork_server``),
 which saves each run ~5 s of imports (on Linux; ``TORCHRL_SAIL_TESTS_FORK=0``, a command prefix,
@@ -19,7 +19,7 @@ from pathlib import Path
 import torch
 from fork_server import STARTUP_VARIABLES, ForkServer, ServerGone
 
-from torchrl_sail.runs import read_scalar  # noqa: F401  (the tests read logged scalars with it)
+from torchrl_sail.harness import read_scalar  # noqa: F401  (the tests read logged scalars with it)
 
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLES = REPO / "examples"

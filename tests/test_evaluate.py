@@ -66,7 +66,7 @@ def test_target_actor_has_the_checkpoints_target_weights(trained):
     from evaluate import load_actor, load_run
     from utils import make_env
 
-    from torchrl_sail.runs import checkpoint_dir
+    from torchrl_sail.harness import checkpoint_dir
 
     cfg, _ = load_run(trained)
     state = saved(trained, "loss")["loss"]
@@ -122,7 +122,7 @@ def test_evaluate_target_actor_and_a_learner_without_one(trained, tmp_path):
     (sac / "config.yaml").write_text((trained / "config.yaml").read_text().replace("learner: td3", "learner: sac"))
     from torchrl.checkpoint import Checkpoint
 
-    from torchrl_sail.runs import checkpoint_dir
+    from torchrl_sail.harness import checkpoint_dir
 
     Checkpoint(run={"frames": 1000}).save(checkpoint_dir(sac))
     proc = evaluate(f"run_dir={sac}", "episodes=1", "actor=target", check=False)
@@ -193,7 +193,7 @@ def test_evaluate_reads_a_config_saved_before_newer_settings(tmp_path):
     from utils import make_discriminator, make_discriminator_loss
 
     from torchrl_sail import make_sail_env
-    from torchrl_sail.runs import checkpoint_dir
+    from torchrl_sail.harness import checkpoint_dir
 
     # a run saved before the discriminator remedies existed: its config has none of their keys
     saved = REPO / "benchmarks" / "results" / "campaign" / "main" / "paper" / "Hopper-v4" / "sail" / "seed0"

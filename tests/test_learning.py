@@ -23,7 +23,7 @@ import torch
 from example_runner import read_scalar, run
 
 from torchrl_sail import TRANSITION_KEYS, make_sail_env, save_demonstrations
-from torchrl_sail._compat import native_bf16_matmul
+from torchrl_sail.harness import native_bf16_matmul
 
 pytestmark = pytest.mark.filterwarnings("ignore:.*is out of date.*")
 

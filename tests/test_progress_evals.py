@@ -8,7 +8,7 @@ import pytest
 import yaml
 from benchmark_scripts import load_benchmark
 
-from torchrl_sail.runs import read_scalar
+from torchrl_sail.harness import read_scalar
 
 progress_evals = load_benchmark("progress_evals")
 

@@ -1,4 +1,4 @@
-"""``torchrl_sail.runs``: a run folder's life cycle (start, resume, truncate, summarise, read) on hand-made folders."""
+"""``torchrl_sail.harness``: a run folder's life cycle (start, resume, truncate, summarise, read) on made folders."""
 
 from __future__ import annotations
 
@@ -10,21 +10,23 @@ from pathlib import Path
 
 import pytest
 import torch
+from torchrl import timeit
 from torchrl.checkpoint import Checkpoint
 
-from torchrl_sail import runs
-from torchrl_sail._compat import timeit
-from torchrl_sail.runs import (
+from torchrl_sail.harness import (
     add_evaluation,
     checkpoint_dir,
     fall_share,
     is_finished,
     last_checkpoint,
+    machine,
     new_run,
+    plot_learning_curve,
     provenance,
     read_scalar,
     restore_run,
     resume_mode,
+    runs,
     start_or_resume,
     train_timing,
     truncate_scalar_logs,
@@ -385,7 +387,7 @@ def test_write_summary_adds_memory_curve_and_provenance(tmp_path):
 
 
 def test_provenance_outside_a_checkout(tmp_path):
-    code = runs.provenance(tmp_path)
+    code = machine.provenance(tmp_path)
     assert code["commit"] is None and code["dirty"] is None and code["python"]
 
 
@@ -396,13 +398,13 @@ def test_provenance_of_a_package_that_is_not_installed(monkeypatch, tmp_path):
         return "1.0"
 
     monkeypatch.setattr(importlib.metadata, "version", version)
-    versions = runs.provenance(tmp_path)["versions"]
+    versions = machine.provenance(tmp_path)["versions"]
     assert versions["torchrl_sail"] is None and versions["torch"] == "1.0"  # the summary is still written
 
 
 def test_plot_learning_curve_reads_the_logs(tmp_path):
     write(tmp_path / "logs" / "scalars" / "eval" / "return.csv", "1000,12.5\n2000,30.0\n")
-    path = runs.plot_learning_curve(tmp_path, teacher_return=20.0, alpha_switch_frame=1500, title="sail")
+    path = plot_learning_curve(tmp_path, teacher_return=20.0, alpha_switch_frame=1500, title="sail")
     assert path == tmp_path / "learning_curve.png" and path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
@@ -413,7 +415,7 @@ import matplotlib
 matplotlib.use("svg")
 import matplotlib.pyplot as plt
 from pathlib import Path
-from torchrl_sail.runs import plot_learning_curve
+from torchrl_sail.harness import plot_learning_curve
 plt.figure()
 plot_learning_curve(Path({str(tmp_path)!r}), teacher_return=1.0, alpha_switch_frame=None, title="t")
 print(matplotlib.get_backend(), plt.get_fignums())
@@ -448,9 +450,9 @@ def test_write_atomic_replaces_whole_files(tmp_path):
 def test_cpu_flags_reads_proc_cpuinfo(monkeypatch, tmp_path):
     cpuinfo = tmp_path / "cpuinfo"
     cpuinfo.write_text("model name\t: Some CPU\nflags\t\t: fpu avx2 sse amx_tile avx512f amx_bf16\n")
-    real_path = runs.Path
-    monkeypatch.setattr(runs, "Path", lambda p: cpuinfo if p == "/proc/cpuinfo" else real_path(p))
-    assert runs.cpu_flags() == ["avx2", "avx512f", "amx_bf16", "amx_tile"]  # MATMUL_FLAGS' order
-    assert runs.cpu_model() == "Some CPU"
+    real_path = machine.Path
+    monkeypatch.setattr(machine, "Path", lambda p: cpuinfo if p == "/proc/cpuinfo" else real_path(p))
+    assert machine.cpu_flags() == ["avx2", "avx512f", "amx_bf16", "amx_tile"]  # MATMUL_FLAGS' order
+    assert machine.cpu_model() == "Some CPU"
     cpuinfo.unlink()
-    assert runs.cpu_flags() == [] and runs.cpu_model() is None
+    assert machine.cpu_flags() == [] and machine.cpu_model() is None

@@ -1,9 +1,10 @@
 """torchrl_sail: Self-Adaptive Imitation Learning (SAIL) as TorchRL components.
 
 Every public name is importable from the top level, e.g.
-``from torchrl_sail import DelayedRewardTransform, SAILLoss``. The run folder of the training
-scripts (start, resume, logs, summary) is :mod:`torchrl_sail.runs`; the private TorchRL APIs the
-package relies on are listed in ``torchrl_sail._compat``.
+``from torchrl_sail import DelayedRewardTransform, SAILLoss``. The run harness of the training
+scripts and benchmarks (run folders, resume, summaries) is :mod:`torchrl_sail.harness`, which this
+import leaves out (its dependencies are the ``harness`` extra); the private TorchRL APIs the package
+relies on are listed in ``torchrl_sail._compat``.
 """
 
 from torchrl_sail.data import (

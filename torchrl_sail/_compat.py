@@ -10,7 +10,7 @@ Checked against torchrl 0.14.1 (tensordict 0.14.3, torch 2.13.0).
 
 Reads of TorchRL internals (functions below):
 
-- ``torchrl._utils.timeit`` and its registry ``timeit._REG`` (:data:`timeit`, :func:`timeit_totals`);
+- the registry ``timeit._REG`` of TorchRL's section timer ``torchrl.timeit`` (:func:`timeit_totals`);
 - ``TargetNetUpdater._sources`` / ``_targets`` and their ``"target_" + name`` pairing
   (:func:`soft_update_pairs`);
 - ``LossModule._reduce_loss`` and ``LossModule._maybe_get_priority_weight`` (:func:`reduce_loss`);
@@ -36,7 +36,7 @@ from __future__ import annotations
 import torch
 from tensordict import TensorDictBase
 from torch import nn
-from torchrl._utils import timeit  # noqa: F401  (TorchRL's section timer: a private module, re-exported)
+from torchrl import timeit
 from torchrl.data.postprocs.postprocs import _multi_step_func
 from torchrl.envs.transforms.utils import _get_reset
 
@@ -57,7 +57,6 @@ __all__ = [
     "soft_update_pairs",
     "tanh_bounds",
     "tanh_map",
-    "timeit",
     "timeit_totals",
 ]
 
@@ -89,7 +88,8 @@ def timeit_totals() -> dict[str, tuple[float, int]]:
     private registry ``timeit._REG`` (``name -> [mean seconds, total seconds, count]``).
 
     Examples:
-        >>> from torchrl_sail._compat import timeit, timeit_totals
+        >>> from torchrl import timeit
+        >>> from torchrl_sail._compat import timeit_totals
         >>> timeit.erase()
         >>> with timeit("compat_doctest"):
         ...     pass
