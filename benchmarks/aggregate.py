@@ -1,7 +1,8 @@
 """Aggregates the training scripts' run folders into the paper's results table and learning curves.
 
     python benchmarks/aggregate.py benchmarks/runs/hopper50k --out benchmarks/runs/hopper50k/report \
-        [--expect-methods sail td3_delayed] [--expect-seeds 0 1 2] [--per-run]
+        [--expect-methods sail td3_delayed] [--expect-seeds 0 1 2] [--per-run] [--write-into FILE:BLOCK]
+    python benchmarks/aggregate.py --update-docs   # every generated block and file, from benchmarks/results/
 
 A run folder is any folder holding ``config.yaml`` (hidden folders such as Hydra's ``.hydra/``
 are skipped). Runs are grouped by (env, teacher, method): the teacher is the folder name under a
@@ -43,18 +44,23 @@ name (``shipped`` for the env's default teacher). Writes to ``--out``:
 A teacher label ``<base>-<variant>`` whose ``<base>`` is another label (the campaign's buffer,
 precision and remedy stages: ``paper-fifo``, ``random-preact``) is also set beside its base in a
 "Variants beside their base" section of ``results.md``: the variant's headline, vs teacher and fall
-share and the base's, for the same env, method and budget.
+share and the base's, for the same env, method and budget, and Welch's t-test of the two sets of
+seeds' headlines.
 
 Runs of one (env, teacher, method) at different budgets (``collector.total_frames``, e.g. the
 campaign's 300k and 1M SAIL runs) are different cells: their method is shown with the budget,
 ``sail (1M)``.
 
-``--readme FILE`` also writes a short results section into ``FILE`` (the README), between the
-lines ``<!-- RESULTS: START -->`` and ``<!-- RESULTS: END -->``, for the runs of one teacher
-(``--readme-teacher``, default ``paper``): the table in the paper's Table 1 format (methods by
-env, the headline mean ± std over seeds, the teacher's return and the paper's SAIL beside them),
-``results_<teacher>.png`` (one panel per env: each method's mean and min-max band over seeds,
-the teacher dashed), the budget, the CPUs, the wall time and the command of every cell.
+Generated blocks. ``--write-into FILE:BLOCK`` also writes the block ``BLOCK`` (a name of
+:data:`BLOCKS`), made from these runs, into the Markdown file ``FILE``, between the lines
+``<!-- aggregate:BLOCK START -->`` and ``<!-- aggregate:BLOCK END -->``: e.g. ``campaign-readme``, the
+README's results section for the runs of one teacher (``--teacher``, default ``paper``) in the
+paper's Table 1 format (methods by env, the headline mean ± std over seeds, the teacher's return and
+the paper's SAIL beside them), with ``results_<teacher>.png`` (one panel per env), the budget, the
+CPUs, the wall time and the command of every cell. ``--update-docs`` writes every block of
+:data:`DOCUMENTS` (the README, ``docs/results.md`` and the studies' READMEs) and every file of
+:func:`generated_files` from the runs committed under ``benchmarks/results/``; ``--check`` writes
+nothing and names each block or file that differs from what they would be (exit status 1).
 
 ``--per-run`` adds a "Runs" section to ``results.md``: per finished run, its eval curve, when it
 first passed the teacher and its fall share since, its best and final evaluation, its best logged
@@ -71,7 +77,11 @@ and duplicates are listed in a "Missing or unfinished runs" section, never avera
 from __future__ import annotations
 
 import argparse
+import contextlib
 import csv
+import functools
+import importlib
+import io
 import json
 import math
 import os
@@ -79,6 +89,7 @@ import re
 import statistics
 import sys
 from collections import defaultdict
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -86,7 +97,14 @@ import numpy as np
 import yaml
 
 # read_scalar: logs/scalars/<tag>.csv or scalars.csv
-from torchrl_sail.harness import fall_share, read_scalar, write_atomic
+from torchrl_sail.harness import (
+    ACTOR_SATURATED,
+    COLLECTED_SCALARS,
+    D_SATURATED,
+    fall_share,
+    read_scalar,
+    write_atomic,
+)
 
 BENCHMARKS = Path(__file__).resolve().parent
 REPO = BENCHMARKS.parent
@@ -114,7 +132,6 @@ PAPER_SAIL = {
     "Walker2d": (5868.5, 108.8),
 }
 PAPER_ENVS = tuple(PAPER_SAIL)  # Table 1's column order
-README_START, README_END = "<!-- RESULTS: START -->", "<!-- RESULTS: END -->"
 HEADLINE_EVALS = 5  # the headline figure of a run: the mean of its last 5 evaluations
 HEADLINE = f"last{HEADLINE_EVALS}"  # its CSV column prefix
 SPEC_EVAL_EPISODES = 10  # episodes per evaluation the reporting spec asks for
@@ -648,19 +665,20 @@ CSV_COLUMNS = (
 )
 
 
-def write_csv(path: Path, table: list[dict]) -> None:
+def csv_text(table: list[dict]) -> str:
     """``results.csv``: full precision, ``n/a`` where a value is undefined (pandas reads it as NaN)."""
-    with path.open("w", newline="") as file:
-        writer = csv.writer(file)
-        writer.writerow(CSV_COLUMNS)
-        for row in table:
-            values = {
-                **row,
-                f"{HEADLINE}_mean": row["headline_mean"],
-                f"{HEADLINE}_std": row["headline_std"],
-                "seeds": " ".join(map(str, row["seeds"])),
-            }
-            writer.writerow([NA if values[column] is None else values[column] for column in CSV_COLUMNS])
+    file = io.StringIO(newline="")
+    writer = csv.writer(file)
+    writer.writerow(CSV_COLUMNS)
+    for row in table:
+        values = {
+            **row,
+            f"{HEADLINE}_mean": row["headline_mean"],
+            f"{HEADLINE}_std": row["headline_std"],
+            "seeds": " ".join(map(str, row["seeds"])),
+        }
+        writer.writerow([NA if values[column] is None else values[column] for column in CSV_COLUMNS])
+    return file.getvalue()
 
 
 def fmt(value: float | None, digits: int = 1) -> str:
@@ -759,27 +777,49 @@ def run_details(run: Run) -> str:
 
 def variants_markdown(variants: list[dict]) -> list[str]:
     """The "Variants" section of ``results.md``: each variant's cell beside its base's."""
-    lines = [
+    return [
         "## Variants beside their base",
         "",
         "A teacher label `<base>-<variant>` is one campaign stage's change of one setting (`paper-fifo`: the "
         "teacher buffer's rule; `random-preact`: the pre-tanh penalty), run with the teacher of `<base>`. Each "
         f"is set beside the runs of `<base>` with the same env, method and budget: last-{HEADLINE_EVALS} mean "
-        "± std over seeds, that mean over the teacher's return, and the fall share (as in the table above).",
+        "± std over seeds, that mean over the teacher's return, and the fall share (as in the table above); "
+        "Welch p: the two-sided p-value of Welch's t-test on the two sets of seeds' last-5 means (n/a with "
+        "fewer than 2 seeds on a side).",
         "",
+        *variant_table_lines(variants),
+    ]
+
+
+def variant_table_lines(variants: list[dict]) -> list[str]:
+    """The table of :func:`variants_markdown`: one line per variant (:func:`variant_rows`)."""
+    lines = [
         f"| env | teacher (return) | method | variant | last-{HEADLINE_EVALS} mean ± std | vs teacher | fall share "
-        f"| base: last-{HEADLINE_EVALS} mean ± std | base: vs teacher | base: fall share |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        f"| base: last-{HEADLINE_EVALS} mean ± std | base: vs teacher | base: fall share | Welch p |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for row in variants:
         group, base = row["group"], row["base"]
         stats, base_stats = group.stats(), base.stats() if base else None
+        p_value = welch(group.values, base.values)[1] if base else None
         lines.append(
             f"| {row['env']} | {row['teacher']} ({fmt(group.teacher_return)}) | {group.method} | {row['variant']} "
             f"| {readme_cell(group)} | {fmt(stats['vs_teacher'], 2)} | {group_fall(stats)} | {readme_cell(base)} "
-            f"| {fmt(base_stats['vs_teacher'], 2) if base else '-'} | {group_fall(base_stats) if base else '-'} |"
+            f"| {fmt(base_stats['vs_teacher'], 2) if base else '-'} | {group_fall(base_stats) if base else '-'} "
+            f"| {fmt(p_value, 2) if base else '-'} |"
         )
     return lines
+
+
+def welch(first: list[float], second: list[float]) -> tuple[float | None, float | None]:
+    """Welch's t-test of two samples' means: (t, two-sided p), (None, None) with fewer than 2 values on
+    a side or no spread on either (t undefined)."""
+    if len(first) < 2 or len(second) < 2 or (statistics.stdev(first) == 0 and statistics.stdev(second) == 0):
+        return None, None
+    from scipy.stats import ttest_ind  # imported here so that reading runs needs no scipy
+
+    result = ttest_ind(first, second, equal_var=False)
+    return float(result.statistic), float(result.pvalue)
 
 
 def markdown(
@@ -792,10 +832,6 @@ def markdown(
 ) -> str:
     """``results.md``: the table, the variants beside their base (:func:`variant_rows`), the runs left
     out, notes on the groups, the curve files, and the per-run ``details`` (:func:`run_details`) if any."""
-    best, methods = {}, defaultdict(int)  # per (env, teacher): the best headline mean, the number of methods
-    for row in table:
-        key = (row["env"], row["teacher"])
-        best[key], methods[key] = max(best.get(key, -math.inf), row["headline_mean"]), methods[key] + 1
     lines = [
         f"Headline: the mean of each run's last {HEADLINE_EVALS} deterministic evaluations (each the mean "
         f"return of eval.episodes episodes), over seeds: mean ± sample std (ddof=1; n/a for one seed) and "
@@ -809,6 +845,32 @@ def markdown(
         "teacher's return, the share below it, pooled over the seeds that passed (falls/evaluations; n/a "
         "if none passed). Best headline mean per env and teacher in bold.",
         "",
+        *table_lines(table),
+    ]
+    if variants:
+        lines += ["", *variants_markdown(variants)]
+    lines += ["", "## Missing or unfinished runs", ""]
+    lines += [f"- `{where}`: {why}" for where, why in left_out] or ["None."]
+    if notes:
+        lines += ["", "## Notes", "", *[f"- {note}" for note in notes]]
+    if curves:
+        lines += ["", "## Learning curves", "", *[f"- [{path.name}]({path.name})" for path in curves]]
+    if details:
+        lines += ["", "## Runs", ""]
+        for text in details:
+            lines += [text, ""]
+        lines.pop()
+    return "\n".join(lines) + "\n"
+
+
+def table_lines(table: list[dict]) -> list[str]:
+    """The results table of :func:`markdown` for the rows ``table`` (:func:`rows`), the best headline
+    mean per env and teacher in bold."""
+    best, methods = {}, defaultdict(int)  # per (env, teacher): the best headline mean, the number of methods
+    for row in table:
+        key = (row["env"], row["teacher"])
+        best[key], methods[key] = max(best.get(key, -math.inf), row["headline_mean"]), methods[key] + 1
+    lines = [
         f"| env | teacher (return) | method | last-{HEADLINE_EVALS} mean ± std | best policy | 95% CI | seeds "
         "| final | best | vs teacher | frames to pass teacher | fall share |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|",
@@ -831,20 +893,7 @@ def markdown(
             f"{mean}{std}{short} | {best_policy_cell(row)} | {ci} | {row['n_seeds']} | {fmt(row['final_mean'])} | "
             f"{fmt(row['best_mean'])} | {fmt(row['vs_teacher'], 2)} | {passed} | {fall} |"
         )
-    if variants:
-        lines += ["", *variants_markdown(variants)]
-    lines += ["", "## Missing or unfinished runs", ""]
-    lines += [f"- `{where}`: {why}" for where, why in left_out] or ["None."]
-    if notes:
-        lines += ["", "## Notes", "", *[f"- {note}" for note in notes]]
-    if curves:
-        lines += ["", "## Learning curves", "", *[f"- [{path.name}]({path.name})" for path in curves]]
-    if details:
-        lines += ["", "## Runs", ""]
-        for text in details:
-            lines += [text, ""]
-        lines.pop()
-    return "\n".join(lines) + "\n"
+    return lines
 
 
 def aligned_curves(runs: list[Run]) -> tuple[np.ndarray, np.ndarray]:
@@ -1012,19 +1061,21 @@ def readme_cell(group: Group | None) -> str:
     return f"{fmt(stats['headline_mean'])} ± {fmt(stats['headline_std'])} ({stats['n_seeds']} seeds)"
 
 
+@functools.cache
+def script_of(method: str) -> Path:
+    """``run_matrix.script_for``, once per method: it composes the config of every method each call."""
+    return sibling("run_matrix").script_for(method)  # puts examples/ on sys.path
+
+
 def cell_command(group: Group) -> str:
     """The training command of a group's runs, from their config (seeds as ``<0|1|2>``)."""
-    if str(BENCHMARKS) not in sys.path:
-        sys.path.insert(0, str(BENCHMARKS))
-    from run_matrix import script_for  # puts examples/ on sys.path
-
     run = group.runs[0]
     config = run.config
     method = group.method.partition(" (")[0]
     seeds = "|".join(str(seed) for seed in sorted(r.seed for r in group.runs))
     teacher = (config.get("teacher") or {}).get("path")
     args = [
-        f"python {script_for(method).relative_to(REPO)}",
+        f"python {script_of(method).relative_to(REPO)}",
         f"algo={method}",
         f"env={run.env}",
         f"seed=<{seeds}>" if len(group.runs) > 1 else f"seed={seeds}",
@@ -1087,8 +1138,6 @@ def readme_section(groups: dict, teacher: str, figure: str, report: str = "resul
         if group.method not in offline or note not in headline_notes(group)
     ]
     text = [
-        README_START,
-        "",
         f"Per run, the mean of its last {HEADLINE_EVALS} deterministic evaluations ({episodes} episodes each)"
         + (f"; offline ({', '.join(offline)}), its one evaluation after training" if offline else "")
         + "; per cell, the mean ± std",
@@ -1112,38 +1161,492 @@ def readme_section(groups: dict, teacher: str, figure: str, report: str = "resul
         "```",
         "",
         "</details>",
-        "",
-        README_END,
     ]
     return "\n".join(text)
 
 
-def write_readme(readme: Path, out: Path, groups: dict, teacher: str) -> None:
-    """Replaces the lines between ``README_START`` and ``README_END`` in ``readme`` (each must be there
-    once, in that order)."""
-    text = readme.read_text()
-    if (
-        text.count(README_START) != 1
-        or text.count(README_END) != 1
-        or text.index(README_START) > text.index(README_END)
-    ):
-        raise ValueError(
-            f"{readme} must have the line {README_START}, then the line {README_END}, once each, around its results "
-            "section"
-        )
-    figure = out / f"results_{safe_name(teacher)}.png"
-    envs = readme_envs(groups, teacher)
-    if not envs:
-        raise ValueError(f"no finished run with teacher {teacher!r} for {readme}'s results section")
-    plot_panels(figure, teacher, envs, groups)
-    start, end = text.index(README_START), text.index(README_END) + len(README_END)
-    link = os.path.relpath(figure.resolve(), readme.resolve().parent)
-    report = os.path.relpath((out / "results.md").resolve(), readme.resolve().parent)
-    write_atomic(readme, text[:start] + readme_section(groups, teacher, link, report) + text[end:])
-
-
 def safe_name(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.+-]+", "_", text)
+
+
+class Source:
+    """What a report or a generated block is made from: the run folders under ``roots`` (read on first
+    use, once) and ``out``, the report folder that a block's links and figures point to.
+
+    Args:
+        roots: folders holding run folders (or, for a block of another study's files, that folder).
+        out: the report folder (``results.md``, the PNGs).
+        teacher: the teacher label of the blocks that show one teacher's runs.
+        expect_methods: list these methods as missing where absent (see :func:`missing_runs`).
+        expect_seeds: list these seeds as missing where absent.
+    """
+
+    def __init__(
+        self,
+        roots: list[Path],
+        out: Path,
+        teacher: str = "paper",
+        expect_methods: list[str] = (),
+        expect_seeds: list[int] = (),
+    ) -> None:
+        self.roots, self.out, self.teacher = [Path(root) for root in roots], Path(out), teacher
+        self.expect_methods, self.expect_seeds = list(expect_methods), list(expect_seeds)
+        self._read, self._once = None, {}
+
+    def _runs(self) -> tuple[dict, list[tuple[str, str]]]:
+        if self._read is None:
+            runs = [load_run(folder) for folder in find_run_folders(self.roots)]
+            missing = missing_runs(runs, self.roots, self.expect_methods, self.expect_seeds)  # by the matrices' names
+            label_budgets(runs)
+            groups, left_out = group_runs(runs)
+            self._read = groups, missing + left_out
+        return self._read
+
+    def once(self, key: str, make: Callable[[], str]) -> str:
+        """``make()``, made once per ``key`` (a block that two files hold)."""
+        if key not in self._once:
+            self._once[key] = make()
+        return self._once[key]
+
+    @property
+    def groups(self) -> dict[tuple[str, str, str], Group]:
+        """The finished runs by (env, teacher, method) (:func:`group_runs`)."""
+        return self._runs()[0]
+
+    @property
+    def left_out(self) -> list[tuple[str, str]]:
+        """(where, why) of the runs missing, unfinished or duplicated."""
+        return self._runs()[1]
+
+    def curves(self) -> list[Path]:
+        """The learning-curve PNGs of the report, one per (env, teacher)."""
+        return [
+            self.out / f"curves_{safe_name(env)}_{safe_name(teacher)}.png"
+            for env, teacher in ordered_pairs(self.groups)
+        ]
+
+    def report(self, per_run: bool = False) -> str:
+        """``results.md`` (:func:`markdown`); with ``per_run``, each finished run's :func:`run_details` after it."""
+        groups = self.groups
+        notes = [note for group in groups.values() for note in group_notes(group)]
+        runs = sorted((run for group in groups.values() for run in group.runs), key=lambda run: str(run.folder))
+        details = [run_details(run) for run in runs] if per_run else []
+        return markdown(rows(groups), self.left_out, notes, self.curves(), details, variant_rows(groups))
+
+    def draw_curves(self) -> None:
+        """Writes the report's learning curves (:func:`plot_curves`)."""
+        self.out.mkdir(parents=True, exist_ok=True)
+        for path, (env, teacher) in zip(self.curves(), ordered_pairs(self.groups)):
+            plot_curves(path, env, teacher, pair_groups(self.groups, env, teacher))
+
+
+# --- generated blocks: tables written into Markdown files between markers
+
+
+def markers(name: str) -> tuple[str, str]:
+    """The lines around the generated block ``name`` in a Markdown file."""
+    return f"<!-- aggregate:{name} START -->", f"<!-- aggregate:{name} END -->"
+
+
+def block_names(text: str) -> list[str]:
+    """The names of the generated blocks in ``text``, in order."""
+    return re.findall(r"<!-- aggregate:(\S+) START -->", text)
+
+
+def replace_block(text: str, name: str, block: str, where: str | Path = "the file") -> str:
+    """``text`` with what lies between the markers of block ``name`` replaced by ``block`` (a blank line
+    on either side).
+
+    Raises:
+        ValueError: the markers are not there once each, START before END (``where`` names the file).
+    """
+    start, end = markers(name)
+    if text.count(start) != 1 or text.count(end) != 1 or text.index(start) > text.index(end):
+        raise ValueError(f"{where} must have the line {start}, then the line {end}, once each, around its block")
+    low, high = text.index(start) + len(start), text.index(end)
+    return text[:low] + "\n\n" + block.strip("\n") + "\n\n" + text[high:]
+
+
+def link(path: Path, target: Path) -> str:
+    """``path`` as a relative link from the Markdown file ``target``."""
+    return os.path.relpath(Path(path).resolve(), Path(target).resolve().parent)
+
+
+def sibling(name: str):
+    """The script ``benchmarks/<name>.py`` as a module (they import each other by their file names)."""
+    if str(BENCHMARKS) not in sys.path:
+        sys.path.insert(0, str(BENCHMARKS))
+    return importlib.import_module(name)
+
+
+def readme_figure(source: Source) -> Path:
+    return source.out / f"results_{safe_name(source.teacher)}.png"
+
+
+def block_readme(source: Source, target: Path) -> str:
+    """The README's results section for the runs of ``source.teacher`` (:func:`readme_section`)."""
+    if not readme_envs(source.groups, source.teacher):
+        raise ValueError(f"no finished run with teacher {source.teacher!r} for {target}'s results section")
+    figure, report = link(readme_figure(source), target), link(source.out / "results.md", target)
+    return readme_section(source.groups, source.teacher, figure, report)
+
+
+def draw_readme(source: Source) -> None:
+    """The README section's figure: one panel per env (:func:`plot_panels`)."""
+    source.out.mkdir(parents=True, exist_ok=True)
+    plot_panels(readme_figure(source), source.teacher, readme_envs(source.groups, source.teacher), source.groups)
+
+
+def block_teacher_table(source: Source, target: Path) -> str:
+    """The results table (:func:`table_lines`) of every method with ``source.teacher``."""
+    return "\n".join(table_lines([row for row in rows(source.groups) if row["teacher"] == source.teacher]))
+
+
+def is_variant(label: str, labels: set[str]) -> bool:
+    """Whether a teacher label is ``<base>-<variant>`` of another label (:func:`variant_rows`)."""
+    return label.rpartition("-")[0] in labels
+
+
+def block_teachers(source: Source, target: Path) -> str:
+    """The results table of SAIL's defaults with every teacher (no variant): the paper's Table 2 axis."""
+    labels = {teacher for _, teacher, _ in source.groups}
+    table = [
+        row
+        for row in rows(source.groups)
+        if method_name(row["method"]) == "sail" and not is_variant(row["teacher"], labels)
+    ]
+    return "\n".join(table_lines(table))
+
+
+def block_variants(source: Source, target: Path) -> str:
+    """Each variant beside its base (:func:`variant_table_lines`)."""
+    return "\n".join(variant_table_lines(variant_rows(source.groups)))
+
+
+COMPARED = ("sail", "dac")  # the seed-by-seed comparison of the paper's table: SAIL against the authors' DAC
+
+
+def block_compared(source: Source, target: Path) -> str:
+    """Per env, the last-5 mean of every seed of ``COMPARED``'s two methods with ``source.teacher`` at one
+    budget, how many seeds of each end above every seed of the other, and Welch's t-test."""
+    first, second = COMPARED
+    lines = [
+        f"| env | teacher (return) | {first}: last-{HEADLINE_EVALS} (seed) | {second}: last-{HEADLINE_EVALS} (seed) "
+        f"| {first} seeds above every {second} seed | {second} seeds above every {first} seed | Welch t | Welch p |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for env in readme_envs(source.groups, source.teacher):
+        pairs = {}
+        for group in pair_groups(source.groups, env, source.teacher):
+            pairs.setdefault(total_frames(group.runs[0]), {})[method_name(group.method)] = group
+        for budget, methods in sorted(pairs.items(), key=lambda item: item[0] or 0):
+            if first not in methods or second not in methods:
+                continue
+            ours, theirs = (sorted(methods[name].runs, key=lambda run: run.seed) for name in COMPARED)
+            a, b = [run.headline_return for run in ours], [run.headline_return for run in theirs]
+            t, p = welch(a, b)
+
+            def seeds(runs: list[Run]) -> str:
+                return ", ".join(f"{run.headline_return:.1f} ({run.seed})" for run in runs)
+
+            lines.append(
+                f"| {env} | {source.teacher} ({fmt(methods[first].teacher_return)}) | {seeds(ours)} | {seeds(theirs)} "
+                f"| {sum(x > max(b) for x in a)}/{len(a)} | {sum(x > max(a) for x in b)}/{len(b)} | {fmt(t, 2)} "
+                f"| {fmt(p, 3)} |"
+            )
+    return "\n".join(lines)
+
+
+def kframes(frames: int | None) -> str:
+    """``63500`` -> ``63.5k``; ``-`` for None."""
+    return "-" if frames is None else f"{frames / 1000:g}k"
+
+
+def logged(folder: Path, tags: tuple[str, ...]) -> dict[str, list[tuple[int, float]]]:
+    """:func:`~torchrl_sail.runs.read_scalar` of several tags; a results copy's ``scalars.csv`` read once."""
+    collected = folder / COLLECTED_SCALARS
+    if not collected.is_file():
+        return {tag: read_scalar(folder, tag) for tag in tags}
+    out = {tag: [] for tag in tags}
+    with collected.open(newline="") as file:
+        for row in csv.DictReader(file):
+            if row["tag"] in out:
+                out[row["tag"]].append((int(float(row["frames"])), float(row["value"])))
+    return out
+
+
+def saturation(run: Run) -> tuple[str, str]:
+    """The shares of a run's logged points with D saturated (accuracy at least
+    :data:`~torchrl_sail.runs.D_SATURATED` on both sides) and with the actor saturated (at least
+    :data:`~torchrl_sail.runs.ACTOR_SATURATED` of its action components at a bound), as ``summary.json``
+    gives them (:func:`~torchrl_sail.runs.discriminator_summary`, :func:`~torchrl_sail.runs.actor_summary`),
+    each with its last such frame; ``-`` where the run did not log it."""
+    series = logged(run.folder, ("d/accuracy_teacher", "d/accuracy_agent", "actor/saturation"))
+    agent = dict(series["d/accuracy_agent"])
+    shares = (
+        (
+            series["d/accuracy_teacher"],
+            lambda frame, value: value >= D_SATURATED and agent.get(frame, 0.0) >= D_SATURATED,
+        ),
+        (series["actor/saturation"], lambda frame, value: value >= ACTOR_SATURATED),
+    )
+    cells = []
+    for points, saturated in shares:
+        hits = [frame for frame, value in points if saturated(frame, value)]
+        if not points:
+            cells.append("-")
+        elif not hits:
+            cells.append("0%")
+        else:
+            share = 100 * len(hits) / len(points)
+            cells.append(
+                f"{share:.0f}% (last {kframes(hits[-1])})" if share >= 1 else f"{share:.1f}% (last {kframes(hits[-1])})"
+            )
+    return cells[0], cells[1]
+
+
+def block_seeds(source: Source, target: Path) -> str:
+    """One line per finished run: its last-5 mean, final and best evaluation, when it passed its teacher
+    and its fall share since, its first promotion, promotions and final threshold C, and the shares of
+    its logged points with D and with the actor saturated."""
+    lines = [
+        f"| run | teacher return | last-{HEADLINE_EVALS} | final | best | passed teacher at | fall share "
+        "| first promotion | promoted | final C | D saturated | actor saturated |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for env, teacher in ordered_pairs(source.groups):
+        for group in pair_groups(source.groups, env, teacher):
+            for run in sorted(group.runs, key=lambda r: r.seed):
+                summary, share = run.summary or {}, run.fall_share
+                where = next(
+                    (
+                        run.folder.resolve().relative_to(root.resolve())
+                        for root in source.roots
+                        if inside(run.folder, root)
+                    ),
+                    run.folder,
+                )
+                d_saturated, actor_saturated = saturation(run)
+                promoted = summary.get("num_promoted")
+                threshold = summary.get("teacher_threshold")
+                threshold = "-" if threshold is None else fmt(threshold, 0)
+                fall = NA if share is None else fmt_fall(share["share"], share["falls"], share["evaluations"])
+                lines.append(
+                    f"| `{where}` | {fmt(run.teacher_return)} | {fmt(run.headline_return)} | {fmt(run.final_return)} "
+                    f"| {fmt(run.best_return)} | {'offline' if run.offline else kframes(run.passed_teacher_at())} "
+                    f"| {'offline' if run.offline else fall} | {kframes(summary.get('alpha_switched_at_frame'))} "
+                    f"| {'-' if promoted is None else promoted} | {threshold} "
+                    f"| {d_saturated} | {actor_saturated} |"
+                )
+    return "\n".join(lines)
+
+
+def block_trusted_rule(source: Source, target: Path) -> str:
+    """The trusted-default decision rule applied to the runs (``trusted_rule.py``)."""
+    return source.once("trusted-rule", lambda: sibling("trusted_rule").report(source.roots))
+
+
+CAMPAIGN = Path("benchmarks/results/campaign")  # the results campaign's runs, relative to the repository
+
+
+def block_falls(source: Source, target: Path) -> str:
+    """The actor against its target actor at the final checkpoint of campaign runs: each pair of
+    ``examples/evaluate.py`` records ``<run>_online.json`` and ``<run>_target.json`` in
+    ``source.roots[0]``, beside the run's own last evaluation (the run read under :data:`CAMPAIGN`)."""
+
+    def returns(record: dict) -> str:
+        lengths, mean = record["length"]["values"], record["dense_return"]["mean"]
+        if min(lengths) == max(lengths):
+            return f"{mean:.1f} (every episode {lengths[0]} steps)"
+        low, high = min(lengths), max(lengths)
+        longest = sum(length == high for length in lengths)
+        return f"{mean:.1f} (episodes of {low}-{high} steps, {longest} of {len(lengths)} at {high})"
+
+    lines = [
+        "| run | frames | logged last evaluation | actor | target actor |",
+        "|---|---|---|---|---|",
+    ]
+    found = []
+    for online_file in sorted(source.roots[0].glob("*_online.json")):
+        online = json.loads(online_file.read_text())
+        target_file = online_file.with_name(online_file.name.removesuffix("_online.json") + "_target.json")
+        target_record = json.loads(target_file.read_text())
+        parts = Path(online["run_dir"]).parts  # ends <stage>/<teacher>/<env>/<method>/seed<n>, as in CAMPAIGN
+        run = load_run(CAMPAIGN.joinpath(*parts[-5:]))
+        found.append((run.final_return, parts[-5:], online, target_record))
+    for final, parts, online, target_record in sorted(found, key=lambda item: item[0]):
+        lines.append(
+            f"| `{'/'.join(parts)}` | {kframes(online['checkpoint_frames'])} | {fmt(final)} | {returns(online)} "
+            f"| {returns(target_record)} |"
+        )
+    return "\n".join(lines)
+
+
+def block_random_policy(source: Source, target: Path) -> str:
+    """A uniform random policy's return per env, from ``random_policy.py``'s JSON in ``source.roots[0]``."""
+    random_policy = sibling("random_policy")
+    data = json.loads((source.roots[0] / "random_policy.json").read_text())
+    envs = data["envs"]
+    return "\n".join(
+        [
+            random_policy.HEADER,
+            *(random_policy.row(env, list(zip(e["returns"], e["lengths"]))) for env, e in envs.items()),
+        ]
+    )
+
+
+@dataclass(frozen=True)
+class Block:
+    """A generated block: ``render(source, target)`` makes its Markdown for the file ``target``;
+    ``draw(source)``, if any, writes the figure it links."""
+
+    render: Callable[[Source, Path], str]
+    draw: Callable[[Source], None] | None = None
+
+
+#: Every block ``--write-into FILE:BLOCK`` can write, by name.
+BLOCKS = {
+    "campaign-readme": Block(block_readme, draw_readme),
+    "campaign": Block(block_teacher_table),
+    "campaign-sail-vs-dac": Block(block_compared),
+    "campaign-teachers": Block(block_teachers),
+    "campaign-variants": Block(block_variants),
+    "campaign-seeds": Block(block_seeds),
+    "trusted-rule": Block(block_trusted_rule),
+    "hopper-falls": Block(block_falls),
+    "random-policy": Block(block_random_policy),
+}
+
+#: The generated blocks of the repository's Markdown files: file -> {block: the folder it is made from}
+#: (paths relative to the repository). ``--update-docs`` writes them, ``--check`` compares them.
+DOCUMENTS = {
+    "README.md": {"campaign-readme": CAMPAIGN},
+    "docs/results.md": {
+        "campaign": CAMPAIGN,
+        "campaign-sail-vs-dac": CAMPAIGN,
+        "campaign-teachers": CAMPAIGN,
+        "campaign-variants": CAMPAIGN,
+        "hopper-falls": Path("benchmarks/results/hopper_falls"),
+        "trusted-rule": CAMPAIGN,
+    },
+    "benchmarks/results/campaign/README.md": {"campaign-seeds": CAMPAIGN},
+    "benchmarks/results/hopper_falls/README.md": {"hopper-falls": Path("benchmarks/results/hopper_falls")},
+    "benchmarks/results/random_policy/README.md": {"random-policy": Path("benchmarks/results/random_policy")},
+}
+
+# falls.py's tables: file -> (the run folders it reads, the teacher return of runs without a summary),
+# paths relative to the repository
+TUNING = Path("benchmarks/results/trusted_tuning")
+FALLS = {
+    "benchmarks/results/hopper_falls/falls_hopper_defaults.md": (
+        [CAMPAIGN / f"main/paper/Hopper-v4/sail/seed{seed}" for seed in (0, 1, 2)]
+        + [CAMPAIGN / "scale/paper/Hopper-v4/sail/seed0"],
+        None,
+    ),
+    "benchmarks/results/hopper_falls/falls_walker2d_defaults.md": (
+        [CAMPAIGN / f"main/paper/Walker2d-v4/sail/seed{seed}" for seed in (0, 1, 2)],
+        None,
+    ),
+    "benchmarks/results/hopper_falls/falls_hopper_preact.md": (
+        [CAMPAIGN / f"preact/paper-preact/Hopper-v4/sail/seed{seed}" for seed in (0, 1, 2)],
+        None,
+    ),
+    "benchmarks/results/hopper_falls/falls_walker2d_preact.md": (
+        [CAMPAIGN / f"preact/paper-preact/Walker2d-v4/sail/seed{seed}" for seed in (0, 1, 2)],
+        None,
+    ),
+    # stopped runs, without a summary: their teachers' returns (the paper's Hopper one, the shipped Walker2d one)
+    str(TUNING / "falls_hopper.md"): ([TUNING / "hop_paper_preact_s100"], 1480.688232421875),
+    str(TUNING / "falls_walker2d.md"): ([TUNING / "walk_shipped_preact_s100"], 423.37884521484375),
+}
+
+
+def source_of(folder: Path, sources: dict[Path, Source]) -> Source:
+    """The :class:`Source` of a folder of :data:`DOCUMENTS` (its report: ``<folder>/report``), read once."""
+    if folder not in sources:
+        sources[folder] = Source([folder], folder / "report")
+    return sources[folder]
+
+
+def generated_files(sources: dict[Path, Source]) -> dict[str, Callable[[], str]]:
+    """The whole files made from committed runs, by path (relative to the repository): the campaign's
+    report (``results.md``, ``results.csv``), the trusted-default rule and ``falls.py``'s tables."""
+    campaign = source_of(CAMPAIGN, sources)
+    files = {
+        str(CAMPAIGN / "report" / "results.md"): campaign.report,
+        str(CAMPAIGN / "report" / "results.csv"): lambda: csv_text(rows(campaign.groups)),
+        "benchmarks/results/trusted/rule.md": lambda: block_trusted_rule(campaign, Path("rule.md")) + "\n",
+    }
+    for path, (folders, teacher_return) in FALLS.items():
+        files[path] = lambda folders=folders, given=teacher_return: (
+            sibling("falls").report(folders, 10_000, given) + "\n"
+        )
+    return files
+
+
+@contextlib.contextmanager
+def in_folder(folder: Path):
+    """Runs the body with ``folder`` as the working directory: the reports name runs relative to it."""
+    before = Path.cwd()
+    os.chdir(folder)
+    try:
+        yield
+    finally:
+        os.chdir(before)
+
+
+def regenerate(text: str, where: Path, blocks: dict[str, Path], sources: dict[Path, Source]) -> tuple[str, list[str]]:
+    """``text``, the file ``where`` (relative to the repository), with each of ``blocks`` made again from
+    its folder, and the names of the blocks that changed. Runs in the repository's folder.
+
+    Raises:
+        ValueError: a block without its markers, or a block in ``text`` that ``blocks`` does not name.
+    """
+    unknown = sorted(set(block_names(text)) - set(blocks))
+    if unknown:
+        raise ValueError(f"{where} has generated blocks that aggregate.py does not make: {', '.join(unknown)}")
+    changed = []
+    for name, folder in blocks.items():
+        new = replace_block(text, name, BLOCKS[name].render(source_of(folder, sources), where), where)
+        if new != text:
+            changed.append(name)
+        text = new
+    return text, changed
+
+
+def read_exact(path: Path) -> str:
+    """The text of ``path`` with its line endings as they are (``results.csv``'s are CSV's ``\\r\\n``)."""
+    with open(path, newline="") as file:
+        return file.read()
+
+
+def update_docs(check: bool = False) -> list[str]:
+    """Makes every generated block of :data:`DOCUMENTS` and every file of :func:`generated_files` again from
+    the committed runs, and writes those that changed (with ``check``, writes nothing); also the
+    figures they link. Returns what differed, one line each: ``<file>: block <name>``, or the file.
+    """
+    stale, sources = [], {}
+    with in_folder(REPO):
+        for name, folders in DOCUMENTS.items():
+            path = Path(name)
+            text = path.read_text()
+            new, changed = regenerate(text, path, folders, sources)
+            stale += [f"{name}: block {block}" for block in changed]
+            if not check:
+                for block, folder in folders.items():
+                    if BLOCKS[block].draw is not None:
+                        BLOCKS[block].draw(source_of(folder, sources))
+                if changed:
+                    write_atomic(path, new)
+        for name, make in generated_files(sources).items():
+            path, text = Path(name), make()
+            if not path.is_file() or read_exact(path) != text:
+                stale.append(name)
+                if not check:
+                    write_atomic(path, text)
+        if not check:
+            source_of(CAMPAIGN, sources).draw_curves()
+    return stale
 
 
 def aggregate(
@@ -1152,65 +1655,101 @@ def aggregate(
     expect_methods: list[str] = (),
     expect_seeds: list[int] = (),
     per_run: bool = False,
-    readme: Path | None = None,
-    readme_teacher: str = "paper",
+    write_into: list[tuple[Path, str]] = (),
+    teacher: str = "paper",
 ) -> str:
     """Reads the runs under ``roots``, writes the table, CSV and curves to ``out``; returns the Markdown
-    (with ``per_run``, each finished run's :func:`run_details` after it). With ``readme``, also its
-    results section (:func:`write_readme`)."""
-    runs = [load_run(folder) for folder in find_run_folders(roots)]
-    missing = missing_runs(runs, roots, list(expect_methods), list(expect_seeds))  # by the matrices' names
-    label_budgets(runs)
-    groups, left_out = group_runs(runs)
-    left_out = missing + left_out
-    notes = [note for group in groups.values() for note in group_notes(group)]
-    out.mkdir(parents=True, exist_ok=True)
-    curves = []
-    for env, teacher in ordered_pairs(groups):
-        curves.append(out / f"curves_{safe_name(env)}_{safe_name(teacher)}.png")
-        plot_curves(curves[-1], env, teacher, pair_groups(groups, env, teacher))
-    table = rows(groups)
-    write_csv(out / "results.csv", table)
-    details = (
-        [
-            run_details(run)
-            for run in sorted((run for group in groups.values() for run in group.runs), key=lambda run: str(run.folder))
-        ]
-        if per_run
-        else []
-    )
-    text = markdown(table, left_out, notes, curves, details, variant_rows(groups))
-    (out / "results.md").write_text(text)
-    if readme is not None:
-        write_readme(readme, out, groups, readme_teacher)
+    (with ``per_run``, each finished run's :func:`run_details` after it). Also writes each
+    ``(file, block)`` of ``write_into``: the block of :data:`BLOCKS` made from these runs, into the file.
+
+    Raises:
+        ValueError: a block name :data:`BLOCKS` does not have, or a file without the block's markers
+            (checked before anything is written).
+    """
+    unknown = sorted({name for _, name in write_into} - set(BLOCKS))
+    if unknown:
+        raise ValueError(f"no generated block named {', '.join(unknown)}; the blocks: {', '.join(BLOCKS)}")
+    for path, name in write_into:
+        replace_block(Path(path).read_text(), name, "", path)  # the markers are there, before any work
+    source = Source(roots, out, teacher, expect_methods, expect_seeds)
+    source.draw_curves()
+    write_atomic(out / "results.csv", csv_text(rows(source.groups)))
+    text = source.report(per_run)
+    write_atomic(out / "results.md", text)
+    for path, name in write_into:
+        block = BLOCKS[name]
+        if block.draw is not None:
+            block.draw(source)
+        path = Path(path)
+        write_atomic(path, replace_block(path.read_text(), name, block.render(source, path), path))
     return text
+
+
+def block_target(value: str) -> tuple[Path, str]:
+    """``FILE:BLOCK`` of ``--write-into``."""
+    path, colon, name = value.rpartition(":")
+    if not colon or not path or not name:
+        raise argparse.ArgumentTypeError(f"expected FILE:BLOCK, got {value!r}")
+    return Path(path), name
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("roots", nargs="+", type=Path, help="folders holding run folders (searched recursively)")
-    parser.add_argument("--out", type=Path, required=True, help="where results.md, results.csv and the PNGs go")
+    parser.add_argument("roots", nargs="*", type=Path, help="folders holding run folders (searched recursively)")
+    parser.add_argument("--out", type=Path, help="where results.md, results.csv and the PNGs go")
     parser.add_argument("--expect-methods", nargs="+", default=[], help="list these methods as missing where absent")
     parser.add_argument(
         "--expect-seeds", nargs="+", type=int, default=[], help="list these seeds as missing where absent"
     )
     parser.add_argument("--per-run", action="store_true", help="add each finished run's own figures (a Runs section)")
-    parser.add_argument("--readme", type=Path, help="write the results section between its RESULTS markers")
-    parser.add_argument("--readme-teacher", default="paper", help="the teacher label of the README's runs")
-    return parser.parse_args(argv)
+    parser.add_argument(
+        "--write-into",
+        action="append",
+        type=block_target,
+        default=[],
+        metavar="FILE:BLOCK",
+        help=f"write a generated block between its markers in FILE (repeatable); blocks: {', '.join(BLOCKS)}",
+    )
+    parser.add_argument("--teacher", default="paper", help="the teacher label of the blocks that show one teacher")
+    modes = parser.add_mutually_exclusive_group()
+    modes.add_argument(
+        "--update-docs",
+        action="store_true",
+        help="write every generated block and file of the repository from the committed runs",
+    )
+    modes.add_argument(
+        "--check", action="store_true", help="write nothing; exit 1 naming each generated block or file that differs"
+    )
+    args = parser.parse_args(argv)
+    if args.update_docs or args.check:
+        if args.roots or args.out or args.write_into:
+            parser.error("--update-docs and --check read the committed runs: they take no roots, --out or --write-into")
+    elif not args.roots or args.out is None:
+        parser.error("give the folders of runs and --out (or --update-docs, --check)")
+    return args
 
 
 def main(argv: list[str] | None = None) -> None:
     args = parse_args(argv)
     try:
+        if args.update_docs or args.check:
+            stale = update_docs(check=args.check)
+            for line in stale:
+                print(f"{line}: {'differs from the committed runs' if args.check else 'written'}")
+            if args.check and stale:
+                raise SystemExit(
+                    f"aggregate.py: {len(stale)} generated block(s) or file(s) differ from the committed runs; "
+                    "python benchmarks/aggregate.py --update-docs writes them"
+                )
+            return
         text = aggregate(
             args.roots,
             args.out,
             args.expect_methods,
             args.expect_seeds,
             args.per_run,
-            readme=args.readme,
-            readme_teacher=args.readme_teacher,
+            write_into=args.write_into,
+            teacher=args.teacher,
         )
         print(text, end="")
     except (FileNotFoundError, ValueError) as err:

@@ -649,13 +649,12 @@ def test_readme_section_in_the_papers_format(tmp_path):
         json.dumps({**summary, "provenance": {"cpu_model": "Test CPU", "torch_threads": 1}})
     )
     readme = tmp_path / "README.md"
-    readme.write_text(
-        "# Project\n\n## Results\n\nBy hand.\n\n<!-- RESULTS: START -->\nold\n<!-- RESULTS: END -->\n\n## Tests\n"
-    )
-    run_aggregate([campaign], tmp_path / "report", readme=readme, readme_teacher="paper")
+    start, end = "<!-- aggregate:campaign-readme START -->", "<!-- aggregate:campaign-readme END -->"
+    readme.write_text(f"# Project\n\n## Results\n\nBy hand.\n\n{start}\nold\n{end}\n\n## Tests\n")
+    run_aggregate([campaign], tmp_path / "report", write_into=[(readme, "campaign-readme")], teacher="paper")
     text = readme.read_text()
-    assert text.startswith("# Project\n\n## Results\n\nBy hand.\n\n<!-- RESULTS: START -->") and text.endswith(
-        "<!-- RESULTS: END -->\n\n## Tests\n"
+    assert text.startswith(f"# Project\n\n## Results\n\nBy hand.\n\n{start}\n\nPer run,") and text.endswith(
+        f"</details>\n\n{end}\n\n## Tests\n"
     )
     assert "old" not in text
     # Table 1's order of envs (Swimmer before Hopper); mean ± sample std over seeds; the teacher; the paper's SAIL
@@ -682,11 +681,14 @@ def test_readme_section_in_the_papers_format(tmp_path):
     assert "| bc | - | 40.0 (1 seed) |" in text
     # the seed continued with another learning rate: the README points to the report's notes
     assert "Notes on these runs (1: fewer evaluations, other settings): [the report](report/results.md)." in text
-    for broken in ("no markers\n", "<!-- RESULTS: END -->\n<!-- RESULTS: START -->\n"):
+    for broken in ("no markers\n", f"{end}\n{start}\n", f"{start}\n{end}\n{start}\n{end}\n"):
         readme.write_text(broken)
-        with pytest.raises(ValueError, match="must have the line <!-- RESULTS: START -->, then the line"):
-            run_aggregate([campaign], tmp_path / "report", readme=readme)
+        with pytest.raises(ValueError, match=f"must have the line {start}, then the line {end}, once each"):
+            run_aggregate([campaign], tmp_path / "report2", write_into=[(readme, "campaign-readme")])
         assert readme.read_text() == broken  # nothing written
+        assert not (tmp_path / "report2").exists()  # refused before any work
+    with pytest.raises(ValueError, match="no generated block named nonesuch; the blocks: campaign-readme, campaign,"):
+        run_aggregate([campaign], tmp_path / "report2", write_into=[(readme, "nonesuch")])
 
 
 def test_variants_set_beside_their_base_of_the_same_env_method_and_budget(tmp_path):
@@ -714,10 +716,11 @@ def test_variants_set_beside_their_base_of_the_same_env_method_and_budget(tmp_pa
     section = text.split("## Variants beside their base")[1].split("## Missing")[0]
     table = [line for line in section.splitlines() if line.startswith("| Hopper")]
     assert table == [
-        "| Hopper-v4 | paper (150.0) | sail | bf16 | 75.0 (1 seed) | 0.50 | n/a | - | - | - |",
-        # base seed 1 passes 150 at its first eval (200), then stays above for its 4 others
+        "| Hopper-v4 | paper (150.0) | sail | bf16 | 75.0 (1 seed) | 0.50 | n/a | - | - | - | - |",
+        # base seed 1 passes 150 at its first eval (200), then stays above for its 4 others; Welch's t-test of
+        # [50, 60] against [100, 200]: t = -95 / sqrt(50 / 2 + 5000 / 2) = -1.89, 1.02 degrees of freedom, p = 0.31
         "| Hopper-v4 | paper (150.0) | sail | fifo | 55.0 ± 7.1 (2 seeds) | 0.37 | n/a | 150.0 ± 70.7 (2 seeds) "
-        "| 1.00 | 0.0% (0/4) |",
+        "| 1.00 | 0.0% (0/4) | 0.31 |",
     ]
     assert "my-teacher" not in section
     # without a variant label the section is left out
