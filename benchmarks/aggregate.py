@@ -1363,7 +1363,7 @@ def kframes(frames: int | None) -> str:
 
 
 def logged(folder: Path, tags: tuple[str, ...]) -> dict[str, list[tuple[int, float]]]:
-    """:func:`~torchrl_sail.runs.read_scalar` of several tags; a results copy's ``scalars.csv`` read once."""
+    """:func:`~torchrl_sail.harness.read_scalar` of several tags; a results copy's ``scalars.csv`` read once."""
     collected = folder / COLLECTED_SCALARS
     if not collected.is_file():
         return {tag: read_scalar(folder, tag) for tag in tags}
@@ -1377,9 +1377,9 @@ def logged(folder: Path, tags: tuple[str, ...]) -> dict[str, list[tuple[int, flo
 
 def saturation(run: Run) -> tuple[str, str]:
     """The shares of a run's logged points with D saturated (accuracy at least
-    :data:`~torchrl_sail.runs.D_SATURATED` on both sides) and with the actor saturated (at least
-    :data:`~torchrl_sail.runs.ACTOR_SATURATED` of its action components at a bound), as ``summary.json``
-    gives them (:func:`~torchrl_sail.runs.discriminator_summary`, :func:`~torchrl_sail.runs.actor_summary`),
+    :data:`~torchrl_sail.harness.D_SATURATED` on both sides) and with the actor saturated (at least
+    :data:`~torchrl_sail.harness.ACTOR_SATURATED` of its action components at a bound), as ``summary.json``
+    gives them (:func:`~torchrl_sail.harness.discriminator_summary`, :func:`~torchrl_sail.harness.actor_summary`),
     each with its last such frame; ``-`` where the run did not log it."""
     series = logged(run.folder, ("d/accuracy_teacher", "d/accuracy_agent", "actor/saturation"))
     agent = dict(series["d/accuracy_agent"])
