@@ -1039,7 +1039,8 @@ def plot_panels(path: Path, teacher: str, envs: list[str], groups: dict) -> None
     columns = min(2, len(envs))
     rows_ = math.ceil(len(envs) / columns)
     fig, axes = plt.subplots(rows_, columns, figsize=(5.5 * columns, 3.6 * rows_), squeeze=False)
-    for ax, env in zip(axes.flat, envs):  # a method keeps its colour across the panels
+    # a method keeps its colour across the panels; the grid may have more panels than envs
+    for ax, env in zip(axes.flat, envs, strict=False):
         draw_groups(ax, pair_groups(groups, env, teacher), lambda index, group: colours[group.method])
         ax.set_title(env, fontsize=10)
         ax.set(xlabel="environment frames", ylabel="eval return")
@@ -1236,7 +1237,7 @@ class Source:
     def draw_curves(self) -> None:
         """Writes the report's learning curves (:func:`plot_curves`)."""
         self.out.mkdir(parents=True, exist_ok=True)
-        for path, (env, teacher) in zip(self.curves(), ordered_pairs(self.groups)):
+        for path, (env, teacher) in zip(self.curves(), ordered_pairs(self.groups), strict=True):
             plot_curves(path, env, teacher, pair_groups(self.groups, env, teacher))
 
 
@@ -1339,7 +1340,7 @@ def block_compared(source: Source, target: Path) -> str:
         pairs = {}
         for group in pair_groups(source.groups, env, source.teacher):
             pairs.setdefault(total_frames(group.runs[0]), {})[method_name(group.method)] = group
-        for budget, methods in sorted(pairs.items(), key=lambda item: item[0] or 0):
+        for _, methods in sorted(pairs.items(), key=lambda item: item[0] or 0):
             if first not in methods or second not in methods:
                 continue
             ours, theirs = (sorted(methods[name].runs, key=lambda run: run.seed) for name in COMPARED)
@@ -1490,7 +1491,7 @@ def block_random_policy(source: Source, target: Path) -> str:
     return "\n".join(
         [
             random_policy.HEADER,
-            *(random_policy.row(env, list(zip(e["returns"], e["lengths"]))) for env, e in envs.items()),
+            *(random_policy.row(env, list(zip(e["returns"], e["lengths"], strict=True))) for env, e in envs.items()),
         ]
     )
 

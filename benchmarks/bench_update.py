@@ -146,9 +146,9 @@ def pieces(iters: int) -> dict:
     for implementation, precision in (("loss", "fp32"), ("fused", "fp32"), ("fused", "bf16")):
         update = make_update(implementation, precision)
         tag = f"TD3 step [{implementation}, {precision}]"
-        critic = timed(lambda i: update.critic_step(batches[i % 64]), iters)
-        actor = timed(lambda i: update.actor_step(batches[i % 64]), iters)
-        targets = timed(lambda i: update.update_targets(), iters)
+        critic = timed(lambda i, update=update: update.critic_step(batches[i % 64]), iters)
+        actor = timed(lambda i, update=update: update.actor_step(batches[i % 64]), iters)
+        targets = timed(lambda i, update=update: update.update_targets(), iters)
         results[f"{tag} critic step"] = critic
         results[f"{tag} actor step"] = actor
         results[f"{tag} target update"] = targets
@@ -189,11 +189,11 @@ def scale(iters: int) -> list[tuple]:
         )
         for batch_size in (256, 1024):
             block_ms = [
-                timed(lambda i: rb.sample(batch_size, alpha, 1000), 3, warmup=1) / 1000
+                timed(lambda i, rb=rb, size=batch_size, alpha=alpha: rb.sample(size, alpha, 1000), 3, warmup=1) / 1000
                 for rb, alpha in ((every_row, 0.5), (distinct, 0.5), (distinct, 0.0))
             ]
             block = every_row.sample(batch_size, 0.5, 100).unbind(0)
-            step_ms = mean_ms(lambda i: update(block[i % 100], update_actor=i % 2 == 0), iters)
+            step_ms = mean_ms(lambda i, block=block: update(block[i % 100], update_actor=i % 2 == 0), iters)
             rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
             rows.append((replay_size, batch_size, *block_ms, step_ms, rss))
         del teacher, agent, every_row, distinct

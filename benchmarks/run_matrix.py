@@ -76,7 +76,7 @@ def hydra_value(text: str) -> str:
     return "'" + text.replace("\\", "\\\\").replace("'", "\\'") + "'"
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def learners() -> dict[str, str]:
     """``algo.learner`` of every ``conf/algo`` method, read from the composed config (a method may
     inherit its learner, e.g. pofd from gail)."""

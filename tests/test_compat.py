@@ -52,13 +52,13 @@ def test_soft_update_pairs_are_softupdates_own():
     updater = SoftUpdate(loss, tau=0.1)
     sources, targets = _compat.soft_update_pairs(updater)
     assert len(sources) == len(targets) >= 8  # the actor's and the critics' weights and biases (and buffers)
-    assert all(source.shape == target.shape for source, target in zip(sources, targets))
+    assert all(source.shape == target.shape for source, target in zip(sources, targets, strict=True))
     with torch.no_grad():
         for source in sources:
             source.add_(1.0)  # move the sources away from the targets
-    expected = [target + 0.1 * (source - target) for source, target in zip(sources, targets)]
+    expected = [target + 0.1 * (source - target) for source, target in zip(sources, targets, strict=True)]
     updater.step()  # TorchRL's own Polyak step moves exactly these tensors
-    for target, value in zip(targets, expected):
+    for target, value in zip(targets, expected, strict=True):
         torch.testing.assert_close(target, value)
 
 

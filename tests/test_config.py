@@ -279,7 +279,7 @@ def test_discriminator_remedies_reach_the_loss_the_net_and_the_step():
     # overlapping sides: D steps; far apart and learned: D is past the bound and skips
     before = raw_weights()
     out = discriminator_step(cfg, d_loss, optimizer, batch(0.0))
-    assert out["d/skipped"] == 0.0 and any(not torch.equal(a, b) for a, b in zip(before, raw_weights()))
+    assert out["d/skipped"] == 0.0 and any(not torch.equal(a, b) for a, b in zip(before, raw_weights(), strict=True))
     for _ in range(200):
         out = discriminator_step(cfg, d_loss, optimizer, batch(3.0))
         if out["d/skipped"]:
@@ -288,7 +288,9 @@ def test_discriminator_remedies_reach_the_loss_the_net_and_the_step():
     assert (out["d/accuracy_teacher"] + out["d/accuracy_agent"]).item() / 2 > 0.9
     before = raw_weights()
     assert discriminator_step(cfg, d_loss, optimizer, batch(3.0))["d/skipped"] == 1.0
-    assert all(torch.equal(a, b) for a, b in zip(before, raw_weights()))  # a skipped step changes no parameter
+    assert all(
+        torch.equal(a, b) for a, b in zip(before, raw_weights(), strict=True)
+    )  # a skipped step changes no parameter
     assert all(p.grad is None for p in discriminator.parameters())
 
 

@@ -227,7 +227,7 @@ class TestDelayedRewardTransform:
         assert "episode_return" not in stored["next"].keys()
 
     def test_hand_computed_episode_sums(self):
-        for rewards, running in zip(EPISODES, RUNNING):
+        for rewards, running in zip(EPISODES, RUNNING, strict=True):
             assert sum(rewards) == running[-1]
         assert [math.floor(0.1 * r[-1]) for r in RUNNING] == [1, 2, -4]
 

@@ -59,7 +59,7 @@ SHIPPED = {
 }
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _load(path: str) -> Demonstrations:
     return load_sb_demonstrations(path)
 
@@ -120,7 +120,7 @@ def _write_sb_npz(path, lengths, *, T=1000, time_feature=True, returns=None, dro
         starts[i] = np.array([t[i] == 0])
     if returns is None:
         bounds = np.cumsum([0] + list(lengths))
-        returns = [rewards[a:b].sum(dtype=np.float64) for a, b in zip(bounds[:-1], bounds[1:])]
+        returns = [rewards[a:b].sum(dtype=np.float64) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
     arrays = dict(
         obs=obs,
         actions=np.tanh(obs[:, :1] / 10).astype(np.float32),
@@ -156,7 +156,9 @@ class TestPaperTeacherFiles:
         assert data["step_count"].dtype == torch.int64
         # dense rewards kept: per-episode sums reproduce the recorded returns
         ends = np.cumsum(lengths)
-        sums = [float(data["next", "reward"][a:b].double().sum()) for a, b in zip(np.r_[0, ends[:-1]], ends)]
+        sums = [
+            float(data["next", "reward"][a:b].double().sum()) for a, b in zip(np.r_[0, ends[:-1]], ends, strict=True)
+        ]
         np.testing.assert_allclose(sums, returns, atol=2e-2)
 
     def test_documented_ranges(self, teacher_dir):

@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import subprocess
 import sys
-import tomllib
 from pathlib import Path
+
+import tomllib
 
 REPO = Path(__file__).resolve().parents[1]
 #: the harness extra's top-level modules, which no component may import (tqdm is one too, but
@@ -22,8 +23,9 @@ for path in sorted(root.rglob("*.py")):
     parts = path.relative_to(root.parent).with_suffix("").parts
     if "harness" not in parts:
         importlib.import_module(".".join(p for p in parts if p != "__init__"))
-print(sorted(name for name in sys.modules if name.split(".")[0] in %r or name.startswith("torchrl_sail.harness")))
-""" % (HARNESS_ONLY,)
+harness = [m for m in sys.modules if m.split(".")[0] in HARNESS_ONLY or m.startswith("torchrl_sail.harness")]
+print(sorted(harness))
+""".replace("HARNESS_ONLY", repr(HARNESS_ONLY))
 
 
 def test_components_import_without_the_harness_or_its_dependencies():
@@ -34,7 +36,9 @@ def test_components_import_without_the_harness_or_its_dependencies():
 
 def test_the_harness_dependencies_are_an_extra():
     project = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]
-    core = {requirement.split(">")[0].split("[")[0].split("=")[0].split("<")[0] for requirement in project["dependencies"]}
+    core = {
+        requirement.split(">")[0].split("[")[0].split("=")[0].split("<")[0] for requirement in project["dependencies"]
+    }
     assert core == {"torch", "torchrl", "tensordict", "gymnasium", "mujoco", "numpy"}
     extras = project["optional-dependencies"]
     assert {"hydra-core", "wandb", "tqdm", "matplotlib"} <= {r.split(">")[0] for r in extras["harness"]}

@@ -196,7 +196,7 @@ class TestDiscriminatorNet:
         # re-initialised: the same parameters, the normalisation estimated afresh on the new weights
         params = list(net.parameters())
         net.reset_parameters()
-        assert all(a is b for a, b in zip(params, net.parameters()))
+        assert all(a is b for a, b in zip(params, net.parameters(), strict=True))
         assert not torch.equal(net(obs, act), before)
         assert singular_values(layer.weight for layer in linears) == pytest.approx([1.0] * 3, abs=0.05)
 
@@ -270,8 +270,8 @@ class TestDiscriminatorLoss:
         loss_fn = DiscriminatorLoss(disc)
         out = loss_fn(_tagged(obs, torch.zeros(5, 1), tag))
         logits = [3 * o[0] + 4 * o[1] for o in obs]  # [3, -2.5, -5, 0, -3]
-        lt = [z for z, t in zip(logits, tag) if t]
-        la = [z for z, t in zip(logits, tag) if not t]
+        lt = [z for z, t in zip(logits, tag, strict=True) if t]
+        la = [z for z, t in zip(logits, tag, strict=True) if not t]
         softplus = lambda z: math.log1p(math.exp(z))  # noqa: E731
         sig = lambda z: 1 / (1 + math.exp(-z))  # noqa: E731
         bce = sum(softplus(-z) for z in lt) / 3 + sum(softplus(z) for z in la) / 2
@@ -322,18 +322,18 @@ class TestDiscriminatorLoss:
         start = vectors()
         loss_fn.eval()
         loss_fn(td)  # evaluating the loss leaves D's normalisation as it is
-        assert all(torch.equal(a, b) for a, b in zip(start, vectors()))
+        assert all(torch.equal(a, b) for a, b in zip(start, vectors(), strict=True))
         loss_fn.train()
         loss_fn(td)
         after_one = vectors()
-        assert all(not torch.equal(a, b) for a, b in zip(start, after_one))
+        assert all(not torch.equal(a, b) for a, b in zip(start, after_one, strict=True))
         # one iteration per step, whatever the step computes besides (penalty, diagnostics): from the
         # same v (the iteration computes u from v, then v from u), one head call gives the same vectors
         v_keys = [k for k in disc.state_dict() if k.endswith("_v")]
-        disc.load_state_dict({**disc.state_dict(), **dict(zip(v_keys, start))})
+        disc.load_state_dict({**disc.state_dict(), **dict(zip(v_keys, start, strict=True))})
         with disc.net.spectral_norm_iteration():
             disc.net.head(disc.net.features(td["observation"], td["action"]))
-        assert all(torch.equal(a, b) for a, b in zip(after_one, vectors()))
+        assert all(torch.equal(a, b) for a, b in zip(after_one, vectors(), strict=True))
 
     def test_label_smoothing_by_hand(self):
         # teacher targets 1 - 0.2: BCE(z, 0.8) = softplus(-z) + 0.2 * z; agent targets stay 0
@@ -440,7 +440,7 @@ class TestDiscriminatorLoss:
 
         disc.zero_grad()
         (bce - 0.05 * ent + 3.0 * gp).backward()
-        for got, ref in zip(grads, [p.grad for p in disc.parameters()]):
+        for got, ref in zip(grads, [p.grad for p in disc.parameters()], strict=True):
             torch.testing.assert_close(got, ref)
         # the penalty really reaches the weights (double backward)
         assert all(torch.count_nonzero(gr) > 0 for gr in grads)

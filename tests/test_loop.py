@@ -278,7 +278,7 @@ def test_run_clock_starts_the_timed_part_after_warmup():
 
     clock = RunClock({"wall_seconds": 7.0}, 0, warmup=1000)
     seen = []
-    for data in clock.batches(Collector(batches), 0):
+    for _ in clock.batches(Collector(batches), 0):
         seen.append(clock.train_clock is not None)
         with timeit("work"):
             pass

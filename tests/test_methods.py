@@ -252,7 +252,7 @@ def test_pofd_is_ppo_on_the_shaped_delayed_reward(tmp_path, teacher_dir):
     env, shaped = read_scalar(run_dir, "sail/env_reward_mean"), read_scalar(run_dir, "sail/d_reward_mean")
     assert [frame for frame, _ in env] == [frame for frame, _ in shaped] == [256, 512, 768, 1024]
     assert any(value > 0 for _, value in env)  # episodes ended: the delayed reward came
-    assert all(s > e for (_, e), (_, s) in zip(env, shaped))
+    assert all(s > e for (_, e), (_, s) in zip(env, shaped, strict=True))
     assert saved(run_dir, "observation_norm")
 
 

@@ -40,7 +40,7 @@ def root(tmp_path, monkeypatch) -> Path:
 def _episodes(lengths=(3, 4), terminated=(True, False), obs_dim=3, act_dim=2) -> TensorDict:
     """Whole episodes, each ending terminated or truncated; distinct values everywhere."""
     parts = []
-    for i, (T, term) in enumerate(zip(lengths, terminated)):
+    for i, (T, term) in enumerate(zip(lengths, terminated, strict=True)):
         obs = torch.randn(T + 1, obs_dim)
         done = torch.arange(T)[:, None] == T - 1
         parts.append(

@@ -53,14 +53,14 @@ def check(out, ts):
     assert out["observation"].squeeze(-1).tolist() == ts
     assert out["next", "reward"].squeeze(-1).tolist() == [t + 1 for t in ts]  # the 1-step transition is kept
     assert out["next", "observation"].squeeze(-1).tolist() == [t + 0.5 for t in ts]
-    reward, obs, steps, terminated, truncated = zip(*(EXPECTED[t] for t in ts))
+    reward, obs, steps, terminated, truncated = zip(*(EXPECTED[t] for t in ts), strict=True)
     view = out["next_n"]
     torch.testing.assert_close(view["reward"].squeeze(-1), torch.tensor(reward), rtol=0, atol=1e-6)
     assert view["observation"].squeeze(-1).tolist() == list(obs)
     assert view["steps_to_next_obs"].squeeze(-1).tolist() == list(steps)
     assert view["terminated"].squeeze(-1).tolist() == list(terminated)
     assert view["truncated"].squeeze(-1).tolist() == list(truncated)
-    assert view["done"].squeeze(-1).tolist() == [a or b for a, b in zip(terminated, truncated)]
+    assert view["done"].squeeze(-1).tolist() == [a or b for a, b in zip(terminated, truncated, strict=True)]
     assert view["steps_to_next_obs"].shape == view["reward"].shape  # what the estimators' view_as needs
 
 

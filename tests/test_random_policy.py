@@ -35,7 +35,7 @@ def test_row_and_json(tmp_path, capsys):
     written = json.loads(out.read_text())
     assert written["episodes"] == 2 and len(written["envs"]["Hopper-v4"]["returns"]) == 2
     assert set(written["versions"]) == {"gymnasium", "mujoco"}
-    records = list(zip(written["envs"]["Hopper-v4"]["returns"], written["envs"]["Hopper-v4"]["lengths"]))
+    records = list(zip(written["envs"]["Hopper-v4"]["returns"], written["envs"]["Hopper-v4"]["lengths"], strict=True))
     assert capsys.readouterr().out.splitlines()[2] == random_policy.row("Hopper-v4", records)
 
 

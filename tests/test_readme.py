@@ -29,3 +29,13 @@ def test_quickstart_runs():
     assert match, proc.stdout[-2000:]
     threshold, promoted, alpha = float(match[1]), int(match[2]), float(match[3])
     assert threshold >= 46.0 and (alpha == 0.0) == (promoted > 0)
+
+
+def test_ci_runs_the_readmes_test_commands():
+    """``.ci/run`` runs the README's install extra and its pytest lanes, verbatim and in order."""
+    section = (REPO / "README.md").read_text().split("## Tests", 1)[1].split("\n## ", 1)[0]
+    block = re.findall(r"```bash\n(.*?)```", section, flags=re.S)[0]
+    commands = [line.split("#")[0].strip() for line in block.splitlines() if line.startswith("python -m pytest")]
+    ci = [line.strip() for line in (REPO / ".ci" / "run").read_text().splitlines()]
+    assert commands == [line for line in ci if line.startswith("python -m pytest")]
+    assert '.[test' in next(line for line in ci if "pip install" in line and "-e" in line)

@@ -111,7 +111,7 @@ def grads(out, params):
 
 def assert_close_all(xs, ys, **kw):
     assert len(xs) == len(ys)
-    for x, y in zip(xs, ys):
+    for x, y in zip(xs, ys, strict=True):
         torch.testing.assert_close(x, y, **kw)
 
 

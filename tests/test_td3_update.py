@@ -138,13 +138,13 @@ def run_both(spec, steps=6, *, device="cpu", loss_kwargs=None, batch_kwargs=None
 
 def assert_same(out, atol=1e-5):
     (m_ref, g_ref, s_ref), (m_fast, g_fast, s_fast) = out["loss"], out["fused"]
-    for a, b in zip(m_ref, m_fast):
+    for a, b in zip(m_ref, m_fast, strict=True):
         assert a.keys() == b.keys()
         for key in a:
             torch.testing.assert_close(b[key], a[key], atol=atol, rtol=1e-5, msg=key)
     assert len(g_ref) == len(g_fast) > 0
-    for step_ref, step_fast in zip(g_ref, g_fast):
-        for a, b in zip(step_ref, step_fast):
+    for step_ref, step_fast in zip(g_ref, g_fast, strict=True):
+        for a, b in zip(step_ref, step_fast, strict=True):
             assert (a is None) == (b is None)  # the TanhModule bounds are in the actor's params, never a grad
             if a is not None:
                 torch.testing.assert_close(b, a, atol=atol, rtol=1e-4)
@@ -201,7 +201,7 @@ class TestTD3Update:
             out[implementation] = [
                 update(make_batch(UNIT, seed=i, steps_key=("my", "steps")), update_actor=False) for i in range(2)
             ]
-        for a, b in zip(out["loss"], out["fused"]):
+        for a, b in zip(out["loss"], out["fused"], strict=True):
             torch.testing.assert_close(b["loss_qvalue"], a["loss_qvalue"], atol=1e-5, rtol=1e-5)
 
     @pytest.mark.parametrize("device", DEVICES)
@@ -335,7 +335,7 @@ class TestTD3Update:
         )
         before = [p.detach().clone() for p in params]
         update.actor_step(make_batch(UNIT, seed=0))
-        moved = torch.cat([(p.detach() - b).flatten() for p, b in zip(params, before)])
+        moved = torch.cat([(p.detach() - b).flatten() for p, b in zip(params, before, strict=True)])
         assert moved.norm().item() == pytest.approx(1e-3, rel=1e-4)
         with pytest.raises(ValueError, match="actor_max_grad_norm must be > 0"):
             make_update(make_loss(UNIT), implementation, actor_max_grad_norm=0.0)
@@ -406,8 +406,8 @@ class TestTD3Update:
         (m32, g32), (m16, g16) = results["fp32"], results["bf16"]
         for key in m32:
             torch.testing.assert_close(m16[key], m32[key], rtol=0.05, atol=1e-2, msg=key)
-        for step32, step16 in zip(g32, g16):
-            for a, b in zip(step32, step16):
+        for step32, step16 in zip(g32, g16, strict=True):
+            for a, b in zip(step32, step16, strict=True):
                 if a is not None:
                     assert (b - a).norm() <= 0.05 * a.norm() + 1e-6
         # bf16 actually ran: the losses differ from fp32 beyond float32 rounding
@@ -479,7 +479,9 @@ class TestTD3Update:
             torch.manual_seed(1)
             metrics = []
             for i in range(4):
-                batch = make_batch(UNIT, seed=i).apply(lambda t: t.to(dtype) if t.is_floating_point() else t)
+                batch = make_batch(UNIT, seed=i).apply(
+                    lambda t, dtype=dtype: t.to(dtype) if t.is_floating_point() else t
+                )
                 batch["next", "shaped"] = 10 + batch["next", "reward"]
                 batch["next", "ended"] = ~batch["next", "terminated"]
                 batch["next", "over"] = batch["next", "ended"] | batch["next", "truncated"]

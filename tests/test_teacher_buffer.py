@@ -486,7 +486,7 @@ def _history():
     g = torch.Generator().manual_seed(1)
     returns = torch.randint(0, 8, (24,), generator=g).tolist()
     lengths = torch.randint(1, 11, (24,), generator=g).tolist()
-    return [make_traj(float(r), n, code=i + 1) for i, (r, n) in enumerate(zip(returns, lengths))]
+    return [make_traj(float(r), n, code=i + 1) for i, (r, n) in enumerate(zip(returns, lengths, strict=True))]
 
 
 def _build(kind):

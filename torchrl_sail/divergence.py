@@ -98,7 +98,7 @@ class DivergenceCheck:
         flags = torch.stack([tensor.isfinite().all().to(device, non_blocking=True) for tensor in tensors.values()])
         if bool(flags.all()):
             return
-        bad = [name for name, ok in zip(tensors, flags.tolist()) if not ok]  # logged tensors come first
+        bad = [name for name, ok in zip(tensors, flags.tolist(), strict=True) if not ok]  # logged tensors come first
         shown = [f"{key}={logged[key].float().reshape(-1)[0].item():g}" if key in logged else key for key in bad[:8]]
         more = f" and {len(bad) - 8} more" if len(bad) > 8 else ""
         where = (

@@ -27,11 +27,12 @@ import os
 import re
 import shutil
 import warnings
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import torch
 from tensordict import TensorDictBase
 
 from torchrl_sail.data.episodes import (
@@ -457,24 +458,9 @@ def export_minari_dataset(
     """
     minari = _import_minari()
     import gymnasium as gym
-    from gymnasium.envs.registration import EnvSpec
-    from minari.data_collector import EpisodeBuffer  # the buffers create_dataset_from_buffers takes
-    from minari.namespace import create_namespace, list_local_namespaces
 
-    match = _DATASET_ID.fullmatch(dataset_id) if isinstance(dataset_id, str) else None
-    if match is None:
-        raise ValueError(
-            f"dataset_id {dataset_id!r} is not (namespace/)name-v<version>, e.g. 'sail/Hopper-v4/teacher-v0'."
-        )
-    namespace = match["namespace"]
-    if isinstance(demonstrations, (str, os.PathLike)):
-        demonstrations = read_demonstrations(demonstrations, max_episode_steps=max_episode_steps)
-    if isinstance(demonstrations, Demonstrations):
-        data, meta = demonstrations.data, dict(demonstrations.metadata)
-    elif isinstance(demonstrations, TensorDictBase):
-        data, meta = demonstrations, {}
-    else:
-        raise TypeError(f"expected Demonstrations, a TensorDict or a path, got {type(demonstrations)}.")
+    namespace = _dataset_namespace(dataset_id)
+    data, meta = _data_and_metadata(demonstrations, max_episode_steps)
     where = f"demonstrations to export as {dataset_id!r}"
     if "source" in meta:
         where += f" (from {meta['source']})"
@@ -487,57 +473,14 @@ def export_minari_dataset(
         )
     ends = (data["next", "done"].reshape(-1).nonzero().reshape(-1) + 1).tolist()
     starts = [0, *ends[:-1]]
-    lengths = [e - s for s, e in zip(starts, ends)]
-    step_count = data.get("step_count", None)
-    for i, (start, end) in enumerate(zip(starts, ends)):
-        same = (next_obs[start : end - 1] == obs[start + 1 : end]).all(-1)
-        if not same.all():
-            row = start + int((~same).nonzero()[0])
-            raise ValueError(
-                f"{where}: episode {i}: ('next', 'observation') of row {row} is not the "
-                f"'observation' of row {row + 1}; a Minari episode is one observation sequence."
-            )
-        if step_count is not None and int(step_count[start].reshape(-1)[0]) != 0:
-            raise ValueError(
-                f"{where}: episode {i} starts at step_count={int(step_count[start].reshape(-1)[0])}, "
-                f"not 0: a Minari episode starts at a reset (export whole episodes)."
-            )
+    lengths = [e - s for s, e in zip(starts, ends, strict=True)]
+    _check_episode_sequences(obs, next_obs, data.get("step_count", None), starts, ends, where)
     reward = data["next", "reward"].reshape(-1).double().numpy()
-    returns = np.add.reduceat(reward, starts).tolist()
-    recorded = meta.get("episode_returns")
-    if recorded is not None and len(recorded) == len(ends):
-        check_returns(
-            recorded, reward, lengths, where, hint="are the rewards delayed? Minari datasets store dense rewards"
-        )
-        returns = [float(r) for r in recorded]
+    returns = _export_returns(meta.get("episode_returns"), reward, starts, lengths, where)
 
     obs_dim, act_dim = obs.shape[1], action.shape[1]
     env = meta.get("env_id") if env is None else env
-    env_spec = None
-    action_space = gym.spaces.Box(-np.inf, np.inf, (act_dim,), np.float32)
-    if env is not None:
-        try:
-            env_spec = env if isinstance(env, EnvSpec) else gym.spec(env)
-            with warnings.catch_warnings():  # e.g. "Hopper-v4 is out of date"
-                warnings.simplefilter("ignore")
-                made = gym.make(env_spec)
-            spaces = made.observation_space, made.action_space
-            made.close()
-        except Exception as err:
-            raise ValueError(f"{where}: cannot make the env {env!r}: {type(err).__name__}: {err}") from err
-        if not (isinstance(spaces[1], gym.spaces.Box) and spaces[1].shape == (act_dim,)):
-            raise ValueError(
-                f"{where}: 'action' has {act_dim} dims but env {env_spec.id} has the action space "
-                f"{spaces[1]}: the demonstrations were recorded on another env."
-            )
-        env_obs = spaces[0].shape
-        if len(env_obs) != 1 or obs_dim not in (env_obs[0], env_obs[0] + 1):
-            raise ValueError(
-                f"{where}: 'observation' has {obs_dim} dims but env {env_spec.id} has the observation "
-                f"space {spaces[0]} (its size, or one more with the time feature): the demonstrations "
-                f"were recorded on another env."
-            )
-        action_space = gym.spaces.Box(spaces[1].low, spaces[1].high, (act_dim,), np.float32)
+    env_spec, action_space = _env_spec_and_action_space(env, obs_dim, act_dim, where)
 
     base = minari_datasets_root(root)
     target = base / dataset_id
@@ -555,10 +498,145 @@ def export_minari_dataset(
             f"SAIL demonstrations ({len(ends)} episodes, {len(reward)} transitions) exported by "
             f"torchrl_sail" + (f" from {meta['source']}" if "source" in meta else "")
         )
-    obs_np, next_np, act_np = obs.float().numpy(), next_obs.float().numpy(), action.float().numpy()
-    rew_np = reward.astype(np.float32)
+    buffers = _episode_buffers(data, reward, starts, ends)
+
+    def create() -> Any:
+        return minari.create_dataset_from_buffers(
+            dataset_id,
+            buffers,
+            env=env_spec,
+            observation_space=gym.spaces.Box(-np.inf, np.inf, (obs_dim,), np.float32),
+            action_space=action_space,
+            algorithm_name=algorithm_name,
+            author=_as_set(author),
+            author_email=_as_set(author_email),
+            code_permalink=code_permalink,
+            description=description,
+            data_format=data_format,
+        )
+
+    _publish_dataset(target, dataset_id, create, ({_METADATA_KEY: ours}, [{"rewards_sum": r} for r in returns]))
+    if namespace is not None:
+        _add_namespace(base, namespace)
+    return target
+
+
+def _dataset_namespace(dataset_id: str) -> str | None:
+    """The namespace of ``dataset_id`` (``None`` if it has none), once it is ``(namespace/)name-v<version>``."""
+    match = _DATASET_ID.fullmatch(dataset_id) if isinstance(dataset_id, str) else None
+    if match is None:
+        raise ValueError(
+            f"dataset_id {dataset_id!r} is not (namespace/)name-v<version>, e.g. 'sail/Hopper-v4/teacher-v0'."
+        )
+    return match["namespace"]
+
+
+def _data_and_metadata(
+    demonstrations: Demonstrations | TensorDictBase | str | os.PathLike, max_episode_steps: int
+) -> tuple[TensorDictBase, dict]:
+    """``(data, metadata)`` of demonstrations, a transition tensordict (no metadata) or a path read
+    with :func:`~torchrl_sail.data.episodes.read_demonstrations`."""
+    if isinstance(demonstrations, (str, os.PathLike)):
+        demonstrations = read_demonstrations(demonstrations, max_episode_steps=max_episode_steps)
+    if isinstance(demonstrations, Demonstrations):
+        return demonstrations.data, dict(demonstrations.metadata)
+    if isinstance(demonstrations, TensorDictBase):
+        return demonstrations, {}
+    raise TypeError(f"expected Demonstrations, a TensorDict or a path, got {type(demonstrations)}.")
+
+
+def _check_episode_sequences(
+    obs: torch.Tensor,
+    next_obs: torch.Tensor,
+    step_count: torch.Tensor | None,
+    starts: list[int],
+    ends: list[int],
+    where: str,
+) -> None:
+    """Checks that each episode (rows ``starts[i]:ends[i]``) is one observation sequence, each next
+    observation the following observation, and starts at ``step_count`` 0 (if given): the only
+    episodes a Minari episode can hold."""
+    for i, (start, end) in enumerate(zip(starts, ends, strict=True)):
+        same = (next_obs[start : end - 1] == obs[start + 1 : end]).all(-1)
+        if not same.all():
+            row = start + int((~same).nonzero()[0])
+            raise ValueError(
+                f"{where}: episode {i}: ('next', 'observation') of row {row} is not the "
+                f"'observation' of row {row + 1}; a Minari episode is one observation sequence."
+            )
+        if step_count is not None and int(step_count[start].reshape(-1)[0]) != 0:
+            raise ValueError(
+                f"{where}: episode {i} starts at step_count={int(step_count[start].reshape(-1)[0])}, "
+                f"not 0: a Minari episode starts at a reset (export whole episodes)."
+            )
+
+
+def _export_returns(
+    recorded: list[float] | None, reward: np.ndarray, starts: list[int], lengths: list[int], where: str
+) -> list[float]:
+    """The episodes' returns: ``recorded`` (the metadata's ``episode_returns``) if it has one per
+    episode, checked against the float64 rewards, else the sums of the rewards."""
+    returns = np.add.reduceat(reward, starts).tolist()
+    if recorded is not None and len(recorded) == len(lengths):
+        check_returns(
+            recorded, reward, lengths, where, hint="are the rewards delayed? Minari datasets store dense rewards"
+        )
+        returns = [float(r) for r in recorded]
+    return returns
+
+
+def _env_spec_and_action_space(env: Any, obs_dim: int, act_dim: int, where: str) -> tuple[Any, Any]:
+    """The dataset's env spec (``None`` without ``env``) and action space (``env``'s, else an unbounded
+    ``Box``), once ``env``'s sizes are checked against the data's.
+
+    Args:
+        env (str or gymnasium.envs.registration.EnvSpec, optional): the env id or spec.
+        obs_dim (int): the observations' size: ``env``'s, or one more with the time feature.
+        act_dim (int): the actions' size.
+        where (str): the start of the error messages.
+
+    Returns:
+        ``(EnvSpec or None, gymnasium.spaces.Box)``.
+    """
+    import gymnasium as gym
+    from gymnasium.envs.registration import EnvSpec
+
+    action_space = gym.spaces.Box(-np.inf, np.inf, (act_dim,), np.float32)
+    if env is None:
+        return None, action_space
+    try:
+        env_spec = env if isinstance(env, EnvSpec) else gym.spec(env)
+        with warnings.catch_warnings():  # e.g. "Hopper-v4 is out of date"
+            warnings.simplefilter("ignore")
+            made = gym.make(env_spec)
+        spaces = made.observation_space, made.action_space
+        made.close()
+    except Exception as err:
+        raise ValueError(f"{where}: cannot make the env {env!r}: {type(err).__name__}: {err}") from err
+    if not (isinstance(spaces[1], gym.spaces.Box) and spaces[1].shape == (act_dim,)):
+        raise ValueError(
+            f"{where}: 'action' has {act_dim} dims but env {env_spec.id} has the action space "
+            f"{spaces[1]}: the demonstrations were recorded on another env."
+        )
+    env_obs = spaces[0].shape
+    if len(env_obs) != 1 or obs_dim not in (env_obs[0], env_obs[0] + 1):
+        raise ValueError(
+            f"{where}: 'observation' has {obs_dim} dims but env {env_spec.id} has the observation "
+            f"space {spaces[0]} (its size, or one more with the time feature): the demonstrations "
+            f"were recorded on another env."
+        )
+    return env_spec, gym.spaces.Box(spaces[1].low, spaces[1].high, (act_dim,), np.float32)
+
+
+def _episode_buffers(data: TensorDictBase, reward: np.ndarray, starts: list[int], ends: list[int]) -> list:
+    """One ``minari.data_collector.EpisodeBuffer`` per episode of ``data``: its observations plus its
+    last next observation, its actions and ``reward`` (float32 all), its terminations and truncations."""
+    from minari.data_collector import EpisodeBuffer  # the buffers create_dataset_from_buffers takes
+
+    obs_np, next_np = data["observation"].float().numpy(), data["next", "observation"].float().numpy()
+    act_np, rew_np = data["action"].float().numpy(), reward.astype(np.float32)
     term_np, trunc_np = (data["next", key].reshape(-1).numpy() for key in ("terminated", "truncated"))
-    buffers = [
+    return [
         EpisodeBuffer(
             observations=np.concatenate([obs_np[s:e], next_np[e - 1 : e]]),
             actions=act_np[s:e],
@@ -566,45 +644,48 @@ def export_minari_dataset(
             terminations=term_np[s:e],
             truncations=trunc_np[s:e],
         )
-        for s, e in zip(starts, ends)
+        for s, e in zip(starts, ends, strict=True)
     ]
 
-    def as_set(value: str | Iterable[str] | None) -> str | set[str] | None:
-        return value if value is None or isinstance(value, str) else set(value)
+
+def _as_set(value: str | Iterable[str] | None) -> str | set[str] | None:
+    """Minari's ``author``/``author_email``: a string, or a set of strings."""
+    return value if value is None or isinstance(value, str) else set(value)
+
+
+def _publish_dataset(target: Path, dataset_id: str, create: Callable[[], Any], update: tuple[dict, list[dict]]) -> None:
+    """Writes the dataset ``create()`` makes, with ``update`` (see :func:`_storage_metadata`), to ``target``.
+
+    ``create`` (a ``create_dataset_from_buffers`` call) writes ``<MINARI_DATASETS_PATH>/<dataset_id>``:
+    it runs with a scratch root beside ``target``, whose dataset folder becomes the staging folder
+    that :func:`~torchrl_sail.data.episodes.publish_directory` swaps in, so a failure leaves
+    nothing half-written.
+    """
 
     def write(staging: Path) -> None:
-        # create_dataset_from_buffers writes <MINARI_DATASETS_PATH>/<dataset_id>: a scratch root
-        # beside the target, whose dataset folder becomes `staging`, swapped in by publish_directory.
         scratch = staging.with_name(staging.name + ".root")
         try:
             with _datasets_path(scratch), warnings.catch_warnings():
                 # Minari warns about every optional field left out (eval_env, author, ...) and
                 # gymnasium that the -v4 envs are out of date
                 warnings.simplefilter("ignore")
-                created = minari.create_dataset_from_buffers(
-                    dataset_id,
-                    buffers,
-                    env=env_spec,
-                    observation_space=gym.spaces.Box(-np.inf, np.inf, (obs_dim,), np.float32),
-                    action_space=action_space,
-                    algorithm_name=algorithm_name,
-                    author=as_set(author),
-                    author_email=as_set(author_email),
-                    code_permalink=code_permalink,
-                    description=description,
-                    data_format=data_format,
-                )
-            _storage_metadata(created, update=({_METADATA_KEY: ours}, [{"rewards_sum": r} for r in returns]))
+                created = create()
+            _storage_metadata(created, update=update)
             os.replace(scratch / dataset_id, staging)
         finally:
             shutil.rmtree(scratch, ignore_errors=True)
 
     publish_directory(target, write)
-    if namespace is not None:  # the namespace_metadata.json files of Minari's namespace API
-        with _datasets_path(base):
-            if namespace not in list_local_namespaces():
-                create_namespace(namespace)
-    return target
+
+
+def _add_namespace(base: Path, namespace: str) -> None:
+    """Gives ``namespace`` under the datasets folder ``base`` the ``namespace_metadata.json`` files of
+    Minari's namespace API, unless it has them."""
+    from minari.namespace import create_namespace, list_local_namespaces
+
+    with _datasets_path(base):
+        if namespace not in list_local_namespaces():
+            create_namespace(namespace)
 
 
 def _is_minari(path: str | os.PathLike) -> bool:

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from tensordict import TensorDictBase
 
 from torchrl_sail.data.episodes import (
     Demonstrations,
@@ -126,6 +127,48 @@ def load_sb_demonstrations(
     where = str(path)
     if max_episode_steps < 1:
         raise ValueError(f"max_episode_steps must be >= 1, got {max_episode_steps}.")
+    arrays = _read_archive(path, where)
+    obs, actions, rewards = _checked_arrays(arrays, where)
+    start_idx, lengths = _episodes(arrays["episode_starts"], len(obs), max_episode_steps, where)
+    rewards = rewards.astype(np.float64)
+    returns = _episode_returns(arrays, rewards, start_idx, lengths, where)
+    check_action_bounds(
+        actions, -1.0, 1.0, where, space="[-1, 1]", hint="; rescale them to the normalised action space first"
+    )
+    data, has_feature, appended = _transitions(
+        obs,
+        actions,
+        rewards,
+        start_idx,
+        lengths,
+        max_episode_steps=max_episode_steps,
+        time_feature=time_feature,
+        where=where,
+    )
+    check_transitions(data, where)
+
+    metadata = dict(
+        format="stable_baselines.ExpertDataset",
+        source=where,
+        file_keys=sorted(arrays),
+        n_episodes=len(lengths),
+        n_transitions=len(obs),
+        episode_returns=returns.tolist(),
+        episode_lengths=lengths.tolist(),
+        observation_dim=int(data["observation"].shape[1]),
+        action_dim=actions.shape[1],
+        max_episode_steps=int(max_episode_steps),
+        time_feature=has_feature,
+        time_feature_appended=appended,
+    )
+    if match := _SB_NAME.search(path.stem):
+        metadata.update(env_name=match["env"], nominal_score=float(match["score"]))
+    return Demonstrations(data, metadata)
+
+
+def _read_archive(path: Path, where: str) -> dict[str, np.ndarray]:
+    """The arrays of the ``.npz`` file ``path``, which must exist, hold every key of ``_SB_KEYS``
+    and not be a refused SAIL teacher."""
     if not path.is_file():
         raise FileNotFoundError(f"demonstration file not found: {path}")
     refused = refused_teacher(path.name)
@@ -140,7 +183,12 @@ def load_sb_demonstrations(
     missing = [key for key in _SB_KEYS if key not in arrays]
     if missing:
         raise ValueError(f"{where}: missing key {missing[0]!r}; found {sorted(arrays)}.")
+    return arrays
 
+
+def _checked_arrays(arrays: dict[str, np.ndarray], where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(obs, actions, rewards)`` as ``[N, obs_dim]``, ``[N, action_dim]`` and ``[N]``, once the shapes
+    (``episode_starts`` included) agree and every number (``episode_returns`` included) is finite."""
     obs, raw_starts = arrays["obs"], arrays["episode_starts"]
     n = len(obs)
     actions = arrays["actions"].reshape(len(arrays["actions"]), -1)
@@ -161,7 +209,12 @@ def load_sb_demonstrations(
         if "non-finite" in str(err):
             raise
         raise ValueError(f"{where}: non-numeric arrays: {err}") from err
+    return obs, actions, rewards
 
+
+def _episodes(raw_starts: np.ndarray, n: int, max_episode_steps: int, where: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(start_idx, lengths)`` of the episodes that ``episode_starts`` marks among ``n`` rows, none
+    longer than ``max_episode_steps``."""
     # Element 0 of the object array is a Python bool, the others 1-element arrays.
     starts = np.array([np.asarray(x).ravel()[0] for x in raw_starts], dtype=bool)
     if not starts[0]:
@@ -173,9 +226,14 @@ def load_sb_demonstrations(
             f"{where}: episode {lengths.argmax()} has {lengths.max()} steps, more than "
             f"max_episode_steps={max_episode_steps} (the time limit of the recording)."
         )
-    last = start_idx + lengths - 1
+    return start_idx, lengths
 
-    rewards = rewards.astype(np.float64)
+
+def _episode_returns(
+    arrays: dict[str, np.ndarray], rewards: np.ndarray, start_idx: np.ndarray, lengths: np.ndarray, where: str
+) -> np.ndarray:
+    """The file's ``episode_returns``, checked against the float64 ``rewards``; the sums of the
+    rewards if the file has none."""
     returns = np.add.reduceat(rewards, start_idx)
     if "episode_returns" in arrays:
         recorded = arrays["episode_returns"].astype(np.float64).reshape(-1)
@@ -187,14 +245,27 @@ def load_sb_demonstrations(
         # The recorder summed float64 rewards before they were stored as float32.
         check_returns(recorded, rewards, lengths, where)
         returns = recorded
-    check_action_bounds(
-        actions, -1.0, 1.0, where, space="[-1, 1]", hint="; rescale them to the normalised action space first"
-    )
+    return returns
 
-    # Each episode's observations plus its approximated final observation (see above).
+
+def _transitions(
+    obs: np.ndarray,
+    actions: np.ndarray,
+    rewards: np.ndarray,
+    start_idx: np.ndarray,
+    lengths: np.ndarray,
+    *,
+    max_episode_steps: int,
+    time_feature: bool | None,
+    where: str,
+) -> tuple[TensorDictBase, bool, bool]:
+    """The transitions of the episodes, with the approximated final next observations (see
+    :func:`load_sb_demonstrations`), and ``resolve_time_feature``'s ``(has_feature, appended)``."""
+    last = start_idx + lengths - 1
+    # Each episode's observations plus its approximated final observation.
     with_final = np.insert(obs, last + 1, obs[last], axis=0)
     full_length = np.repeat(lengths >= max_episode_steps, lengths)
-    done = np.zeros(n, dtype=bool)
+    done = np.zeros(len(obs), dtype=bool)
     done[last] = True
     data = episodes_to_transitions(
         with_final,
@@ -210,25 +281,7 @@ def load_sb_demonstrations(
     if has_feature and not appended:  # advance the copied time column of the final next states
         final = torch.as_tensor(1.0 - lengths / max_episode_steps, dtype=data["observation"].dtype)
         data["next", "observation"][torch.as_tensor(last), -1] = final
-    check_transitions(data, where)
-
-    metadata = dict(
-        format="stable_baselines.ExpertDataset",
-        source=where,
-        file_keys=sorted(arrays),
-        n_episodes=len(lengths),
-        n_transitions=n,
-        episode_returns=returns.tolist(),
-        episode_lengths=lengths.tolist(),
-        observation_dim=int(data["observation"].shape[1]),
-        action_dim=actions.shape[1],
-        max_episode_steps=int(max_episode_steps),
-        time_feature=has_feature,
-        time_feature_appended=appended,
-    )
-    if match := _SB_NAME.search(path.stem):
-        metadata.update(env_name=match["env"], nominal_score=float(match["score"]))
-    return Demonstrations(data, metadata)
+    return data, has_feature, appended
 
 
 def _is_npz(path: str | os.PathLike) -> bool:

@@ -149,7 +149,7 @@ class TrajectoryWriter(Writer):
             return index
         streams, positions = self._streams(data)
         finished = []  # (end within this call, stream, trajectory, positions in data)
-        for b, (stream, pos) in enumerate(zip(streams, positions)):
+        for b, (stream, pos) in enumerate(zip(streams, positions, strict=True)):
             chunks = self._pending.pop(b, [])
             start = 0
             for end in self._ends(stream):
@@ -205,7 +205,9 @@ class TrajectoryWriter(Writer):
         if mask is None:
             return list(data.unbind(0)), list(position.unbind(0))
         mask = mask.reshape(-1, length)
-        return [d[m] for d, m in zip(data.unbind(0), mask)], [p[m] for p, m in zip(position, mask)]
+        return [d[m] for d, m in zip(data.unbind(0), mask, strict=True)], [
+            p[m] for p, m in zip(position, mask, strict=True)
+        ]
 
     def _ends(self, stream: TensorDictBase) -> list[int]:
         return (stream.get(self.done_key).reshape(-1).nonzero().squeeze(-1) + 1).tolist()

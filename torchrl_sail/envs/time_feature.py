@@ -100,7 +100,7 @@ class TimeFeature(Transform):
 
     def _append(self, tensordict: TensorDictBase) -> TensorDictBase:
         step_count = tensordict[self.step_count_key]
-        for in_key, out_key in zip(self.in_keys, self.out_keys):
+        for in_key, out_key in zip(self.in_keys, self.out_keys, strict=True):
             obs = tensordict[in_key]
             # Computed in float64, then cast once, so the float32 value is the nearest
             # to 1 - t/T (as the teacher data, which match it to ~3e-8).
@@ -136,7 +136,7 @@ class TimeFeature(Transform):
         return tensordict
 
     def transform_observation_spec(self, observation_spec: TensorSpec) -> TensorSpec:
-        for in_key, out_key in zip(self.in_keys, self.out_keys):
+        for in_key, out_key in zip(self.in_keys, self.out_keys, strict=True):
             observation_spec[out_key] = append_unit_column(observation_spec[in_key], owner="TimeFeature", key=in_key)
         return observation_spec
 

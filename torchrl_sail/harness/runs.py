@@ -323,8 +323,8 @@ def start_or_resume(
         optimizers = list(optimizers)
         configured = [[_settings(group) for group in optimizer.param_groups] for optimizer in optimizers]
         restore_run(checkpoint, run_dir, run, truncate_logs=truncate_logs, config=current, may_change=may_change)
-        for optimizer, settings in zip(optimizers, configured):
-            for group, setting in zip(optimizer.param_groups, settings):
+        for optimizer, settings in zip(optimizers, configured, strict=True):
+            for group, setting in zip(optimizer.param_groups, settings, strict=True):
                 group.update(setting)
             _place_steps(optimizer)
         if truncate_logs:

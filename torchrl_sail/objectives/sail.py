@@ -295,6 +295,6 @@ class SAILLoss(TD3Loss):
         td_out.set("alpha", self.alpha.detach().clone())
         if self.mixing == "weights":
             pred = td_out.get("pred_value").mean(0)
-            for name, rows in zip(("teacher", "agent"), self._groups(tensordict)):
+            for name, rows in zip(("teacher", "agent"), self._groups(tensordict), strict=True):
                 td_out.set(f"pred_value_{name}", (pred * rows).sum() / rows.sum())
         return td_out
