@@ -18,9 +18,10 @@ from __future__ import annotations
 
 import importlib.util
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from enum import Enum
-from typing import Any, Dict, List, Optional
+from typing import Any
 
 from hydra.core.config_store import ConfigStore
 from omegaconf import II, MISSING, DictConfig
@@ -52,7 +53,9 @@ EvaluatedActor = Choice("EvaluatedActor", {name: name for name in ("online", "ta
 EvaluatedPolicy = Choice("EvaluatedPolicy", {name: name for name in ("last", "best")})
 LossFunction = Choice("LossFunction", {name: name for name in ("l1", "l2", "smooth_l1")})
 Activation = Choice("Activation", {name: name for name in ("relu", "tanh", "elu")})
-DiscriminatorInit = Choice("DiscriminatorInit", {name: name for name in ("xavier", "orthogonal")})
+DiscriminatorInit = Choice("DiscriminatorInit", {name: name for name in ("xavier", "orthogonal", "torch")})
+Cadence = Choice("Cadence", {name: name for name in ("frames", "episodes")})
+BlockOrder = Choice("BlockOrder", {name: name for name in ("td3_first", "discriminator_first")})
 Backend = Choice("Backend", {name: name for name in ("direct", "process", "ray")})
 LoggerBackend = Choice("LoggerBackend", {name: name for name in ("csv", "wandb", "tensorboard")})
 WandbMode = Choice("WandbMode", {name: name for name in ("offline", "online")})
@@ -71,7 +74,7 @@ class EnvConfig:
     # teacher ring size in transitions for teacher.eviction=fifo (authors' demo_buffer_size)
     teacher_capacity: int = 100_000
     # keyword arguments of gymnasium.make, added with Hydra's +: +env.kwargs.use_contact_forces=true (Ant-v4)
-    kwargs: Dict[str, Any] = field(default_factory=dict)
+    kwargs: dict[str, Any] = field(default_factory=dict)
     # the trajectory-wise reward r_e, the agent's and the demonstrations': floor = the paper's
     # floor(0.1 R) | none = 0.1 R, so promotion compares returns as the authors' code does
     reward_rounding: RewardRounding = RewardRounding.floor
@@ -86,7 +89,7 @@ class AlphaConfig:
     )  # dynamic: `initial` until the first promotion, then `final` | linear | constant
     initial: float = 0.5
     final: float = 0.0
-    anneal_frames: Optional[int] = None  # for mode=linear
+    anneal_frames: int | None = None  # for mode=linear
 
 
 @dataclass
@@ -97,7 +100,7 @@ class RewardConfig:
     # trained) | shaped: the delayed env reward + coef * D's reward (pofd, pofd_td3)
     source: RewardSource = RewardSource.discriminator
     kind: RewardKind = RewardKind.gail  # gail: -log(1 - D) (SAIL, GAIL) | airl: log D - log(1 - D) (DAC, AIRL)
-    clip: Optional[List[float]] = None  # [low, high]: D clipped before the reward (the SAIL authors' DAC)
+    clip: list[float] | None = None  # [low, high]: D clipped before the reward (the SAIL authors' DAC)
     # added before coef: r = coef * (f(D) + shift); -0.693147 (-log 2) centres -log(1 - D) at D = 1/2,
     # negative where D says agent (the weak-teacher candidate, docs/training.md); ours, not the authors'
     shift: float = 0.0
@@ -112,7 +115,7 @@ class RNDConfig:
 
     coef: float = 1.0  # r = -log(1 - D) + coef * bonus (bonus / its running std, clipped at 5); ours
     lr: float = 1.0e-4  # the predictor's Adam (RND's value)
-    cells: List[int] = field(default_factory=lambda: [256, 256])  # target and predictor MLPs
+    cells: list[int] = field(default_factory=lambda: [256, 256])  # target and predictor MLPs
     features: int = 64
 
 
@@ -135,7 +138,7 @@ class PPOConfig:
     # the actor and critic read TorchRL's VecNorm of the observations (decay 0.99999, eps 1e-2),
     # clipped to [-10, 10], the time feature raw; D reads the raw observations, as the teacher's are
     normalize_observations: bool = True
-    cells: List[int] = field(default_factory=lambda: [64, 64])
+    cells: list[int] = field(default_factory=lambda: [64, 64])
 
 
 @dataclass
@@ -189,11 +192,11 @@ class AlgoConfig:
     absorbing_state: bool = False
     absorbing_bootstrap: bool = True
     absorbing_action: AbsorbingAction = AbsorbingAction.zero
-    rnd: Optional[RNDConfig] = None  # a random-network-distillation bonus added to the reward (sail_rnd)
-    ppo: Optional[PPOConfig] = None  # learner=ppo: the PPO generator's settings (gail, pofd)
+    rnd: RNDConfig | None = None  # a random-network-distillation bonus added to the reward (sail_rnd)
+    ppo: PPOConfig | None = None  # learner=ppo: the PPO generator's settings (gail, pofd)
     sac: SACConfig = field(default_factory=SACConfig)
     bc: BCConfig = field(default_factory=BCConfig)
-    nstep: Optional[NStepConfig] = None  # DDPGfD's n-step loss (null: the 1-step TD loss alone)
+    nstep: NStepConfig | None = None  # DDPGfD's n-step loss (null: the 1-step TD loss alone)
     l2_coef: float = 0.0  # DDPGfD's lambda_2: L2 on the actor's and the critic's parameters (Adam weight_decay)
 
 
@@ -206,7 +209,7 @@ class CollectorConfig:
     num_workers: int = 1  # collector processes / actors; > 1 alone selects backend=process
     # TorchRL's Collector backend: null picks `direct` (one process) for num_workers=1, else
     # `process` (MultiSyncCollector). `ray` runs the workers as Ray actors (pip install ray).
-    backend: Optional[Backend] = None
+    backend: Backend | None = None
     # forwarded to TorchRL's Collector(backend_options=...) as it is (a mapping or null), e.g. for
     # ray: {ray_init_config: {address: auto}, remote_configs: {num_cpus: 1, num_gpus: 0}}
     backend_options: Any = None
@@ -223,7 +226,7 @@ class DiscriminatorOptimConfig:
     # Remedies for a saturating D (none is the authors'; each off by default):
     label_smoothing: float = 0.0  # one-sided: the teacher rows' BCE target is 1 - label_smoothing
     instance_noise: float = 0.0  # std of Gaussian noise on D's (normalised) inputs while it trains
-    max_accuracy: Optional[float] = None  # skip a D step when its balanced accuracy on the batch is above
+    max_accuracy: float | None = None  # skip a D step when its balanced accuracy on the batch is above
 
 
 @dataclass
@@ -249,6 +252,12 @@ class OptimConfig:
     loss_function: LossFunction = LossFunction.l2
     train_every_frames: int = 1000  # every 1000 env frames ...
     updates_per_train: int = 1000  # ... 1000 gradient steps (critic each, actor every policy_delay)
+    # When the TD3 and D blocks run: frames = every train_every_frames (D: discriminator.every_frames)
+    # frames | episodes = after each finished episode, the same steps per frame for each of its frames
+    # (Kostrikov et al.'s DAC; one env stream, collector.num_workers=1)
+    cadence: Cadence = Cadence.frames
+    block_order: BlockOrder = BlockOrder.td3_first  # the SAIL authors' order | discriminator_first (DAC's)
+    start_frames: int | None = None  # learning starts at this frame count (null: when the random warm-up ends)
     truncation_is_terminal: bool = True  # authors: done = terminated | truncated ends bootstrapping
     discriminator: DiscriminatorOptimConfig = field(default_factory=DiscriminatorOptimConfig)
     # The TD3 step (torchrl_sail.TD3Update): fused = plain tensor operations on the loss's
@@ -263,8 +272,8 @@ class OptimConfig:
     cudagraphs: bool = False
     # The actor's extras (all off by default; algo=dac_published sets them as Kostrikov et al.'s DAC):
     actor_updates_after: int = 0  # the actor is first updated at this gradient step (then every policy_delay-th)
-    actor_max_grad_norm: Optional[float] = None  # clip the actor's gradients to this global norm
-    actor_lr_decay: Optional[LRDecayConfig] = None  # {rate, every_frames}: actor lr * rate ** (frames // every_frames)
+    actor_max_grad_norm: float | None = None  # clip the actor's gradients to this global norm
+    actor_lr_decay: LRDecayConfig | None = None  # {rate, every_frames}: actor lr * rate ** (frames // every_frames)
     # adds coef * sum_j x_j^2 to the actor loss, x its pre-tanh output (rlkit's policy_pre_activation_weight;
     # not the authors'): keeps the tanh out of saturation, where the actor stops moving (docs/training.md)
     actor_preactivation_coef: float = 0.0
@@ -272,14 +281,15 @@ class OptimConfig:
 
 @dataclass
 class NetworkConfig:
-    actor_cells: List[int] = field(default_factory=lambda: [400, 300])
-    critic_cells: List[int] = field(default_factory=lambda: [400, 300])
+    actor_cells: list[int] = field(default_factory=lambda: [400, 300])
+    critic_cells: list[int] = field(default_factory=lambda: [400, 300])
     activation: Activation = Activation.relu
-    discriminator_cells: List[int] = field(default_factory=lambda: [256, 256])
+    discriminator_cells: list[int] = field(default_factory=lambda: [256, 256])
     discriminator_activation: Activation = Activation.tanh
     normalize_observations: bool = True  # D's running observation normalisation
     discriminator_spectral_norm: bool = False  # spectral normalisation of D's layers (not the authors')
     # D's linear weights: xavier (Glorot-uniform, the SAIL authors') | orthogonal (Kostrikov et al.'s DAC release)
+    # | torch (nn.Linear's own, TorchRL's GAIL example)
     discriminator_init: DiscriminatorInit = DiscriminatorInit.xavier
 
 
@@ -287,7 +297,7 @@ class NetworkConfig:
 class LoggerConfig:
     """TorchRL loggers; csv is always on (plots and summary read it)."""
 
-    backends: List[LoggerBackend] = field(  # any of csv, wandb, tensorboard
+    backends: list[LoggerBackend] = field(  # any of csv, wandb, tensorboard
         default_factory=lambda: [LoggerBackend.csv, LoggerBackend.wandb]
     )
     wandb_mode: WandbMode = WandbMode.offline  # no login or network needed; `wandb sync` later
@@ -299,7 +309,7 @@ class LoggerConfig:
 class TeacherConfig:
     # a .npz file (the paper's format), a demonstration folder or minari:<dataset id>; null = the
     # teacher shipped for env.name (examples/teachers/<env.name>)
-    path: Optional[str] = None
+    path: str | None = None
     k: int = 10  # size K of the window W_k that sets the promotion threshold C (authors: 10)
     # Which trajectories R_T keeps:
     #   topk:  the K best trajectories, demonstrations included (default; the paper's "top-K" reading)
@@ -311,8 +321,8 @@ class TeacherConfig:
     # comma-separated indices and ranges of the file's columns (the time feature included), quoted on
     # Hydra's command line where there is a comma ('0-26,111'); the env must produce the same columns
     # (e.g. env.kwargs.use_contact_forces=false for Ant's 27)
-    keep_columns: Optional[str] = None
-    drop_columns: Optional[str] = None
+    keep_columns: str | None = None
+    drop_columns: str | None = None
     # Before training, a random rollout of the env names the teacher's columns it does not reproduce
     # (constant in the teacher where the env varies, or far outside the env's range): warn | error | off
     column_check: ColumnCheck = ColumnCheck.warn
@@ -344,7 +354,7 @@ class EvalConfig:
     video_every_frames: int = 0  # 0: off | N: every N frames, one deterministic episode to videos/ (and wandb)
     video_format: VideoFormat = VideoFormat.mp4  # mp4 (needs the `video` extra: imageio-ffmpeg) | gif
     # width, height of the offscreen render (MUJOCO_GL=egl without a display)
-    video_size: List[int] = field(default_factory=lambda: [320, 240])
+    video_size: list[int] = field(default_factory=lambda: [320, 240])
 
 
 @dataclass
@@ -387,17 +397,17 @@ class EvaluateConfig:
     # last: the run's last checkpoint | best: the policy it kept as its best (best_policy.pt)
     policy: EvaluatedPolicy = EvaluatedPolicy.last
     # online: the trained actor; target: its Polyak average (TD3 learners); null: the run's eval.actor
-    actor: Optional[EvaluatedActor] = None
-    seed: Optional[int] = None  # null: the run's seed + 20000 (neither its training nor its eval stream)
+    actor: EvaluatedActor | None = None
+    seed: int | None = None  # null: the run's seed + 20000 (neither its training nor its eval stream)
     video: bool = False  # true: also record the first episode (replayed on a rendering env)
     video_format: VideoFormat = VideoFormat.mp4  # mp4 (needs the `video` extra: imageio-ffmpeg) | gif
     # width, height of the offscreen render (MUJOCO_GL=egl without a display)
-    video_size: List[int] = field(default_factory=lambda: [320, 240])
-    out: Optional[str] = None  # the JSON file; null: <run_dir>/evaluation.json (the video beside it)
+    video_size: list[int] = field(default_factory=lambda: [320, 240])
+    out: str | None = None  # the JSON file; null: <run_dir>/evaluation.json (the video beside it)
     # a Minari dataset id (e.g. sail/Hopper-v4/sail-seed0-v0): the episodes, dense rewards
-    export: Optional[str] = None
+    export: str | None = None
     overwrite: bool = False  # replace an existing dataset of that id
-    device: Optional[str] = None  # null: the run's device; e.g. cpu to evaluate a CUDA-trained run here
+    device: str | None = None  # null: the run's device; e.g. cpu to evaluate a CUDA-trained run here
     threads: int = 1
 
 
@@ -429,8 +439,8 @@ class MakeTeacherConfig:
     tau: float = 0.005
     policy_delay: int = 2
     eval_every_frames: int = 5000
-    stop_at_return: Optional[float] = None  # stop training once a deterministic episode reaches this dense return
-    max_return: Optional[float] = None  # only record a trajectory whose return is at most this (keeps the teacher weak)
+    stop_at_return: float | None = None  # stop training once a deterministic episode reaches this dense return
+    max_return: float | None = None  # only record a trajectory whose return is at most this (keeps the teacher weak)
     out: str = "examples/teachers/${env.name}"  # a directory: see save_demonstrations
     algo: MakeTeacherAlgoConfig = field(default_factory=MakeTeacherAlgoConfig)
 
@@ -477,288 +487,514 @@ def masks_absorbing_actions(cfg: DictConfig) -> bool:
     return bool(cfg.algo.absorbing_state and cfg.algo.absorbing_bootstrap)
 
 
+#: A check: ``(key, value, ok, why)``, the key and value an error names and whether the value is valid.
+Rule = tuple[str, Any, bool, str]
+
+
+def _check(rules: Iterable[Rule]) -> None:
+    """Raises for the first rule that does not hold.
+
+    Args:
+        rules: ``(key, value, ok, why)`` tuples, in the order their errors take precedence.
+
+    Raises:
+        ValueError: ``config <key>=<value>: <why>`` of the first rule whose ``ok`` is false.
+    """
+    for key, value, ok, why in rules:
+        if not ok:
+            raise ValueError(f"config {key}={value!r}: {why}")
+
+
+def _at_least(key: str, value: int, low: int) -> Rule:
+    """The rule ``value >= low`` of a count or a cadence (low 0: 0 disables it).
+
+    Args:
+        key: the config key, as the error names it.
+        value: its value.
+        low: the least valid value.
+
+    Returns:
+        The rule, for :func:`_check`.
+    """
+    return key, value, value >= low, f"must be >= {low}" + (" (0 disables)" if low == 0 else "")
+
+
+def _cadence(cfg: DictConfig, key: str, every: int, applies: bool) -> Rule:
+    """The rule that a cadence of the off-policy loop is a multiple of the collector batch.
+
+    The off-policy loop runs the D steps and TD3 updates of every cadence crossed by a collector
+    batch at once, after it: a batch longer than a cadence bunches them, and one that does not
+    divide it shifts them, so the reward would come from a D that is behind.
+
+    Args:
+        cfg: the config (its ``collector.frames_per_batch``, checked >= 1 before).
+        key: the cadence's key.
+        every: its value, in frames.
+        applies: whether the loop runs these updates (an off-policy learner; for D, a trained D).
+
+    Returns:
+        The rule, for :func:`_check`.
+    """
+    batch = cfg.collector.frames_per_batch  # a synchronous collector's batch is over all its workers
+    return (
+        key,
+        every,
+        not applies or cfg.optim.cadence == "episodes" or every % batch == 0,
+        f"must be a multiple of collector.frames_per_batch={batch}: a larger "
+        f"collector batch, or one that does not divide it, runs these updates late or "
+        f"bunched, so D's reward comes from a stale D (lower collector.frames_per_batch)",
+    )
+
+
+def _check_collector(cfg: DictConfig) -> None:
+    """``collector.*`` but its backend: its counts (the cadence rules divide by its batch)."""
+    c = cfg.collector
+    _check(
+        [
+            _at_least("collector.total_frames", c.total_frames, 1),
+            _at_least("collector.frames_per_batch", c.frames_per_batch, 1),
+            _at_least("collector.num_workers", c.num_workers, 1),
+            _at_least("collector.init_random_frames", c.init_random_frames, 0),
+        ]
+    )
+
+
+def _check_collector_backend(cfg: DictConfig) -> None:
+    """``collector.backend`` and ``collector.backend_options``: a backend that fits its workers and is installed."""
+    c = cfg.collector
+    _check(
+        [
+            (
+                "collector.backend",
+                c.backend,
+                c.backend != "direct" or c.num_workers == 1,
+                f"direct runs one worker, but collector.num_workers={c.num_workers}",
+            ),
+            (
+                "collector.backend",
+                c.backend,
+                c.backend != "ray" or importlib.util.find_spec("ray") is not None,
+                "the ray backend needs Ray: pip install ray",
+            ),
+            (
+                "collector.backend_options",
+                c.backend_options,
+                c.backend_options is None or isinstance(c.backend_options, DictConfig),
+                "must be a mapping (forwarded to TorchRL's Collector) or null",
+            ),
+        ]
+    )
+
+
+def _check_env(cfg: DictConfig) -> None:
+    """``env.*``: the replay buffer's size and the exploration noise."""
+    _check(
+        [
+            _at_least("env.replay_size", cfg.env.replay_size, 1),
+            ("env.exploration_noise", cfg.env.exploration_noise, cfg.env.exploration_noise >= 0, "must be >= 0"),
+        ]
+    )
+
+
+def _check_teacher(cfg: DictConfig) -> None:
+    """``teacher.*``: the column check's rollout, and one way to select the teacher's columns."""
+    t = cfg.teacher
+    _check(
+        [
+            _at_least("teacher.column_check_steps", t.column_check_steps, 1),
+            (
+                "teacher.drop_columns",
+                t.drop_columns,
+                t.drop_columns is None or t.keep_columns is None,
+                "and teacher.keep_columns are two ways to say one thing: give one of them",
+            ),
+        ]
+    )
+
+
+def _check_ppo(cfg: DictConfig) -> None:
+    """``algo.ppo``: the PPO learner's settings block and its counts."""
+    # across fields: the PPO learner needs its settings block (algo=gail sets it)
+    _check(
+        [
+            (
+                "algo.ppo",
+                cfg.algo.ppo,
+                cfg.algo.learner != "ppo" or cfg.algo.ppo is not None,
+                "algo.learner=ppo needs the PPO settings (algo=gail has them)",
+            )
+        ]
+    )
+    if cfg.algo.learner == "ppo":
+        p = cfg.algo.ppo
+        _check(
+            [
+                _at_least("algo.ppo.frames_per_batch", p.frames_per_batch, 1),
+                _at_least("algo.ppo.epochs", p.epochs, 1),
+                _at_least("algo.ppo.minibatch_size", p.minibatch_size, 1),
+            ]
+        )
+
+
+def _check_algo(cfg: DictConfig) -> None:
+    """``algo.*`` but its PPO, n-step and reward settings: BC's, and what RND and absorbing states need."""
+    a = cfg.algo
+    _check(
+        [
+            _at_least("algo.bc.epochs", a.bc.epochs, 1),
+            _at_least("algo.bc.batch_size", a.bc.batch_size, 1),
+            ("algo.bc.lr", a.bc.lr, a.bc.lr > 0, "must be > 0"),
+            (
+                "algo.rnd",
+                a.rnd,
+                a.rnd is None or (cfg.collector.num_workers == 1 and cfg.collector.backend in (None, "direct")),
+                "the RND bonus keeps its statistics in the training env: use collector.num_workers=1 and "
+                "collector.backend=null",
+            ),
+            (
+                "algo.absorbing_state",
+                a.absorbing_state,
+                not (a.absorbing_state and a.adaptive),
+                "absorbing states need a fixed teacher (algo.adaptive=false): promotion reads unrewritten trajectories",
+            ),
+        ]
+    )
+
+
+def _check_algo_nstep(cfg: DictConfig) -> None:
+    """DDPGfD's loss terms: ``algo.nstep.*`` (the n-step TD loss) and ``algo.l2_coef`` (its lambda_2)."""
+    a = cfg.algo
+    _check(
+        [
+            (
+                "algo.nstep.n",
+                a.nstep and a.nstep.n,
+                a.nstep is None or a.nstep.n >= 2,
+                "must be >= 2 (algo.nstep=null for the 1-step TD loss alone)",
+            ),
+            (
+                "algo.nstep.lambda1",
+                a.nstep and a.nstep.lambda1,
+                a.nstep is None or 0 < a.nstep.lambda1 < math.inf,
+                "must be a finite number > 0",
+            ),
+            # The n-step sums are of the stored env reward, made when a transition is stored; other
+            # rewards are made at sample time for the 1-step entries only, and promoted, absorbing or
+            # SAC/BC/PPO rows have no n-step view.
+            (
+                "algo.nstep",
+                "set",
+                a.nstep is None
+                or (
+                    a.learner == "td3"
+                    and a.reward.source == "env"
+                    and a.rnd is None
+                    and not a.adaptive
+                    and not a.absorbing_state
+                ),
+                "the n-step loss (DDPGfD) needs algo.learner=td3, algo.reward.source=env, algo.rnd=null, "
+                "algo.adaptive=false and algo.absorbing_state=false",
+            ),
+            (
+                "algo.l2_coef",
+                a.l2_coef,
+                0 <= a.l2_coef < math.inf and (a.l2_coef == 0 or a.learner in ("td3", "sac")),
+                "must be a finite number >= 0, and 0 unless algo.learner is td3 or sac (the actor's and the critic's "
+                "Adam weight decay)",
+            ),
+        ]
+    )
+
+
+def _check_algo_reward(cfg: DictConfig) -> None:
+    """``algo.reward.*``: D's clip and shift, and the sources and schedule a learner can use."""
+    a, r = cfg.algo, cfg.algo.reward
+    _check(
+        [
+            (
+                "algo.reward.clip",
+                r.clip,
+                r.clip is None or (len(r.clip) == 2 and 0 < r.clip[0] < r.clip[1] < 1),
+                "must be [low, high] with 0 < low < high < 1, or null",
+            ),
+            ("algo.reward.shift", r.shift, math.isfinite(r.shift), "must be a finite number"),
+            (
+                "algo.reward.source",
+                r.source,
+                a.learner != "ppo" or (r.source != "env" and a.rnd is None and not a.absorbing_state),
+                "the PPO generator (gail, pofd) learns from D's reward (discriminator or shaped), without an RND "
+                "bonus or absorbing states",
+            ),
+            (
+                "algo.reward.coef_decay",
+                r.coef_decay,
+                0 < r.coef_decay <= 1 and (r.coef_decay == 1 or a.learner == "ppo"),
+                "must be in (0, 1], and 1 unless algo.learner=ppo (it decays the shaping once per on-policy batch)",
+            ),
+        ]
+    )
+
+
+def _check_discriminator(cfg: DictConfig) -> None:
+    """``optim.discriminator.*``: D's counts, its optimiser's ranges and its cadence in the off-policy loop."""
+    d = cfg.optim.discriminator
+    trained = cfg.algo.learner in ("td3", "sac") and cfg.algo.reward.source != "env" and bool(d.steps)
+    _check(
+        [
+            _at_least("optim.discriminator.every_frames", d.every_frames, 1),
+            _at_least("optim.discriminator.batch_size", d.batch_size, 1),
+            _at_least("optim.discriminator.steps", d.steps, 0),
+            ("optim.discriminator.lr", d.lr, d.lr > 0, "must be > 0"),
+            (
+                "optim.discriminator.label_smoothing",
+                d.label_smoothing,
+                0 <= d.label_smoothing < 0.5,
+                "must be in [0, 0.5)",
+            ),
+            (
+                "optim.discriminator.instance_noise",
+                d.instance_noise,
+                0 <= d.instance_noise < float("inf"),
+                "must be a finite number >= 0",
+            ),
+            (
+                "optim.discriminator.max_accuracy",
+                d.max_accuracy,
+                d.max_accuracy is None or 0.5 <= d.max_accuracy < 1,
+                "must be in [0.5, 1) (a balanced accuracy; 1 would never skip), or null",
+            ),
+            _cadence(cfg, "optim.discriminator.every_frames", d.every_frames, trained),
+        ]
+    )
+
+
+def _check_optim_actor(cfg: DictConfig) -> None:
+    """``optim.actor_*``: the actor's extras, TD3's where a stochastic actor has no counterpart."""
+    o = cfg.optim
+    lr_decay = None if o.actor_lr_decay is None else dict(o.actor_lr_decay)
+    _check(
+        [
+            ("optim.actor_updates_after", o.actor_updates_after, o.actor_updates_after >= 0, "must be >= 0"),
+            (
+                "optim.actor_max_grad_norm",
+                o.actor_max_grad_norm,
+                o.actor_max_grad_norm is None or o.actor_max_grad_norm > 0,
+                "must be > 0, or null (no clipping)",
+            ),
+            (
+                "optim.actor_lr_decay",
+                lr_decay,
+                o.actor_lr_decay is None or (0 < o.actor_lr_decay.rate <= 1 and o.actor_lr_decay.every_frames >= 1),
+                "needs 0 < rate <= 1 and every_frames >= 1, or null",
+            ),
+            (
+                "optim.actor_lr_decay",
+                lr_decay,
+                o.actor_lr_decay is None or cfg.algo.learner == "td3",
+                "is TD3's (algo.learner=td3)",
+            ),
+            (
+                "optim.actor_preactivation_coef",
+                o.actor_preactivation_coef,
+                0 <= o.actor_preactivation_coef < math.inf
+                and (o.actor_preactivation_coef == 0 or cfg.algo.learner == "td3"),
+                "must be a finite number >= 0, and 0 unless algo.learner=td3 (a deterministic tanh actor)",
+            ),
+        ]
+    )
+
+
+def _check_optim_step(cfg: DictConfig) -> None:
+    """``optim.precision`` and ``optim.cudagraphs``: options of TD3's fused step, which not every method runs."""
+    o = cfg.optim
+    # DAC's masked actor (bootstrapped absorbing states) runs the loss's own step, not the fused one
+    fused_td3 = o.implementation == "fused" and cfg.algo.learner == "td3" and not masks_absorbing_actions(cfg)
+    _check(
+        [
+            (
+                "optim.precision",
+                o.precision,
+                o.precision == "fp32" or fused_td3,
+                "bf16 is TD3's fused step only: optim.implementation=fused, algo.learner=td3, and no bootstrapped "
+                "absorbing states (DAC's masked actor runs the loss's own step)",
+            ),
+            (
+                "optim.cudagraphs",
+                o.cudagraphs,
+                not o.cudagraphs or (str(cfg.device).startswith("cuda") and fused_td3 and o.actor_lr_decay is None),
+                "CUDA graphs replay TD3's fused step on a GPU: device=cuda, optim.implementation=fused, "
+                "algo.learner=td3, no bootstrapped absorbing states and no optim.actor_lr_decay (a new learning "
+                "rate would capture the graph again)",
+            ),
+        ]
+    )
+
+
+def _check_optim(cfg: DictConfig) -> None:
+    """``optim.*`` but D's, the actor's extras and the step's options: TD3's counts, ranges and cadence."""
+    o = cfg.optim
+    _check(
+        [
+            _at_least("optim.batch_size", o.batch_size, 2),
+            _at_least("optim.train_every_frames", o.train_every_frames, 1),
+            _at_least("optim.policy_delay", o.policy_delay, 1),
+            _at_least("optim.updates_per_train", o.updates_per_train, 0),
+            ("optim.lr", o.lr, o.lr > 0, "must be > 0"),
+            ("optim.gamma", o.gamma, 0 < o.gamma <= 1, "must be in (0, 1]"),
+            ("optim.tau", o.tau, 0 < o.tau <= 1, "must be in (0, 1]"),
+            _cadence(cfg, "optim.train_every_frames", o.train_every_frames, cfg.algo.learner in ("td3", "sac")),
+            (
+                "optim.start_frames",
+                o.start_frames,
+                o.start_frames is None or o.start_frames >= 0,
+                "must be >= 0, or null (learning starts when the random warm-up ends)",
+            ),
+            (
+                "optim.cadence",
+                str(o.cadence),
+                o.cadence == "frames" or cfg.collector.num_workers == 1,
+                "episodes counts the frames of one env stream's episodes: use collector.num_workers=1",
+            ),
+        ]
+    )
+
+
+def _check_eval(cfg: DictConfig) -> None:
+    """``eval.*`` but its videos: its counts and cadence, and the TD3 actors it can evaluate."""
+    e = cfg.eval
+    _check(
+        [
+            _at_least("eval.episodes", e.episodes, 1),
+            _at_least("eval.best_policy.every_frames", e.best_policy.every_frames, 1),
+            _at_least("eval.best_policy.window", e.best_policy.window, 1),
+            _at_least("eval.best_policy.episodes", e.best_policy.episodes, 0),
+            _at_least("eval.every_frames", e.every_frames, 0),
+            (
+                "eval.actor",
+                str(e.actor),
+                e.actor == EvaluatedActor.online or cfg.algo.learner == "td3",
+                "target is TD3's (algo.learner=td3): only a TD3 learner keeps a target actor",
+            ),
+            (
+                "eval.other_actor",
+                e.other_actor,
+                not e.other_actor or cfg.algo.learner == "td3",
+                "is TD3's (algo.learner=td3): only a TD3 learner keeps a target actor",
+            ),
+        ]
+    )
+
+
+def _check_eval_video(cfg: DictConfig) -> None:
+    """``eval.video_*``: the videos' cadence and size, and the packages their format and loggers need."""
+    e = cfg.eval
+    video_size = list(e.video_size)
+    _check(
+        [
+            _at_least("eval.video_every_frames", e.video_every_frames, 0),
+            # a list's length and range
+            (
+                "eval.video_size",
+                video_size,
+                len(video_size) == 2 and min(video_size) >= 16,
+                "must be [width, height], each >= 16",
+            ),
+            # what the chosen outputs need installed
+            (
+                "eval.video_format",
+                "mp4",
+                not (
+                    e.video_every_frames
+                    and e.video_format == "mp4"
+                    and importlib.util.find_spec("imageio_ffmpeg") is None
+                ),
+                "MP4 videos need imageio-ffmpeg: pip install -e '.[video]' (or use gif)",
+            ),
+            (
+                "eval.video_every_frames",
+                e.video_every_frames,
+                not (
+                    e.video_every_frames
+                    and "wandb" in cfg.logger.backends
+                    and importlib.util.find_spec("moviepy") is None
+                ),
+                "wandb encodes videos with moviepy: pip install -e '.[video]' (or drop wandb from logger.backends)",
+            ),
+        ]
+    )
+
+
+def _check_logger(cfg: DictConfig) -> None:
+    """``logger.*``: the packages its backends need."""
+    backends = cfg.logger.backends
+    _check(
+        [
+            (
+                "logger.backends",
+                list(backends),
+                "tensorboard" not in backends or importlib.util.find_spec("tensorboard") is not None,
+                "the tensorboard backend needs the tensorboard package: pip install -e '.[tensorboard]'",
+            ),
+        ]
+    )
+
+
+def _check_run(cfg: DictConfig) -> None:
+    """The run's own keys: ``checkpoint.every_frames``, ``resume`` and ``device``."""
+    import torch  # here: composing a config (e.g. benchmarks/run_matrix.py) needs no torch
+
+    _check(
+        [
+            _at_least("checkpoint.every_frames", cfg.checkpoint.every_frames, 0),
+            # a union the schema cannot type (SAILConfig.resume)
+            ("resume", cfg.resume, cfg.resume in (True, False, "auto"), "use true, false or auto"),
+            (
+                "device",
+                cfg.device,
+                cfg.device == "cpu" or torch.cuda.is_available(),
+                "CUDA is not available on this machine; use device=cpu",
+            ),
+        ]
+    )
+
+
+# A value can break rules of several sections (algo.learner=sac breaks every TD3-only option set,
+# collector.num_workers=2 both algo.rnd and collector.backend=direct); the sections run in the
+# order their rules had in the one check they were split from, so such a config is named by the
+# same key as before: the collector's counts first (the cadence rules divide by its batch), the PPO
+# block, the TD3-only extras, the method, its backend and TD3 step options, its losses and reward,
+# the cadences those switch on (D's before TD3's), and last what this machine must have (a device,
+# the video and logger packages), so a config error is named before a missing package.
+_SECTIONS = (
+    _check_collector,
+    _check_env,
+    _check_teacher,
+    _check_ppo,
+    _check_optim_actor,
+    _check_eval,
+    _check_algo,
+    _check_collector_backend,
+    _check_optim_step,
+    _check_algo_nstep,
+    _check_algo_reward,
+    _check_discriminator,
+    _check_optim,
+    _check_run,
+    _check_eval_video,
+    _check_logger,
+)
+
+
 def check_config(cfg: DictConfig) -> None:
     """Rejects invalid values before anything is built, naming the key and the fix.
 
     Types, choices and unknown keys are the schema's (Hydra rejects them while composing). What
     is left here is what a type cannot say: ranges, rules across fields, and options that need
-    a package or a device this machine lacks.
+    a package or a device this machine lacks. Each section's rules are in its own function
+    (:data:`_SECTIONS`); a rule across sections is in the section of the key its error names.
 
     Raises:
         ValueError: ``config <key>=<value>: <why>`` for the first invalid value.
     """
-    import torch  # here: composing a config (e.g. benchmarks/run_matrix.py) needs no torch
-
-    def fail(key, value, why):
-        raise ValueError(f"config {key}={value!r}: {why}")
-
-    c, o, d = cfg.collector, cfg.optim, cfg.optim.discriminator
-    # across fields: the PPO learner needs its settings block (algo=gail sets it)
-    if cfg.algo.learner == "ppo" and cfg.algo.ppo is None:
-        fail("algo.ppo", None, "algo.learner=ppo needs the PPO settings (algo=gail has them)")
-    # ranges: counts and cadences (0 disables those with low 0)
-    for key, value, low in [
-        ("collector.total_frames", c.total_frames, 1),
-        ("collector.frames_per_batch", c.frames_per_batch, 1),
-        ("collector.num_workers", c.num_workers, 1),
-        ("optim.batch_size", o.batch_size, 2),
-        ("optim.train_every_frames", o.train_every_frames, 1),
-        ("optim.policy_delay", o.policy_delay, 1),
-        ("optim.discriminator.every_frames", d.every_frames, 1),
-        ("optim.discriminator.batch_size", d.batch_size, 1),
-        ("env.replay_size", cfg.env.replay_size, 1),
-        ("eval.episodes", cfg.eval.episodes, 1),
-        ("teacher.column_check_steps", cfg.teacher.column_check_steps, 1),
-        ("eval.best_policy.every_frames", cfg.eval.best_policy.every_frames, 1),
-        ("eval.best_policy.window", cfg.eval.best_policy.window, 1),
-        ("eval.best_policy.episodes", cfg.eval.best_policy.episodes, 0),
-        *(
-            [
-                ("algo.ppo.frames_per_batch", cfg.algo.ppo.frames_per_batch, 1),
-                ("algo.ppo.epochs", cfg.algo.ppo.epochs, 1),
-                ("algo.ppo.minibatch_size", cfg.algo.ppo.minibatch_size, 1),
-            ]
-            if cfg.algo.learner == "ppo"
-            else []
-        ),
-        ("algo.bc.epochs", cfg.algo.bc.epochs, 1),
-        ("algo.bc.batch_size", cfg.algo.bc.batch_size, 1),
-        ("collector.init_random_frames", c.init_random_frames, 0),
-        ("optim.updates_per_train", o.updates_per_train, 0),
-        ("optim.discriminator.steps", d.steps, 0),
-        ("eval.every_frames", cfg.eval.every_frames, 0),
-        ("eval.video_every_frames", cfg.eval.video_every_frames, 0),
-        ("checkpoint.every_frames", cfg.checkpoint.every_frames, 0),
-    ]:
-        if value < low:
-            fail(key, value, f"must be >= {low}" + (" (0 disables)" if low == 0 else ""))
-    # ranges of real numbers, value sets a type cannot say, rules across fields, and what this machine must have
-    for key, value, ok, why in [
-        ("optim.lr", o.lr, o.lr > 0, "must be > 0"),
-        ("optim.actor_updates_after", o.actor_updates_after, o.actor_updates_after >= 0, "must be >= 0"),
-        (
-            "optim.actor_max_grad_norm",
-            o.actor_max_grad_norm,
-            o.actor_max_grad_norm is None or o.actor_max_grad_norm > 0,
-            "must be > 0, or null (no clipping)",
-        ),
-        (
-            "optim.actor_lr_decay",
-            None if o.actor_lr_decay is None else dict(o.actor_lr_decay),
-            o.actor_lr_decay is None or (0 < o.actor_lr_decay.rate <= 1 and o.actor_lr_decay.every_frames >= 1),
-            "needs 0 < rate <= 1 and every_frames >= 1, or null",
-        ),
-        (
-            "optim.actor_lr_decay",
-            None if o.actor_lr_decay is None else dict(o.actor_lr_decay),
-            o.actor_lr_decay is None or cfg.algo.learner == "td3",
-            "is TD3's (algo.learner=td3)",
-        ),
-        (
-            "optim.actor_preactivation_coef",
-            o.actor_preactivation_coef,
-            0 <= o.actor_preactivation_coef < math.inf
-            and (o.actor_preactivation_coef == 0 or cfg.algo.learner == "td3"),
-            "must be a finite number >= 0, and 0 unless algo.learner=td3 (a deterministic tanh actor)",
-        ),
-        (
-            "eval.actor",
-            str(cfg.eval.actor),
-            cfg.eval.actor == EvaluatedActor.online or cfg.algo.learner == "td3",
-            "target is TD3's (algo.learner=td3): only a TD3 learner keeps a target actor",
-        ),
-        (
-            "teacher.drop_columns",
-            cfg.teacher.drop_columns,
-            cfg.teacher.drop_columns is None or cfg.teacher.keep_columns is None,
-            "and teacher.keep_columns are two ways to say one thing: give one of them",
-        ),
-        (
-            "eval.other_actor",
-            cfg.eval.other_actor,
-            not cfg.eval.other_actor or cfg.algo.learner == "td3",
-            "is TD3's (algo.learner=td3): only a TD3 learner keeps a target actor",
-        ),
-        ("optim.discriminator.lr", d.lr, d.lr > 0, "must be > 0"),
-        ("optim.discriminator.label_smoothing", d.label_smoothing, 0 <= d.label_smoothing < 0.5, "must be in [0, 0.5)"),
-        (
-            "optim.discriminator.instance_noise",
-            d.instance_noise,
-            0 <= d.instance_noise < float("inf"),
-            "must be a finite number >= 0",
-        ),
-        (
-            "optim.discriminator.max_accuracy",
-            d.max_accuracy,
-            d.max_accuracy is None or 0.5 <= d.max_accuracy < 1,
-            "must be in [0.5, 1) (a balanced accuracy; 1 would never skip), or null",
-        ),
-        ("algo.bc.lr", cfg.algo.bc.lr, cfg.algo.bc.lr > 0, "must be > 0"),
-        ("optim.gamma", o.gamma, 0 < o.gamma <= 1, "must be in (0, 1]"),
-        ("optim.tau", o.tau, 0 < o.tau <= 1, "must be in (0, 1]"),
-        ("env.exploration_noise", cfg.env.exploration_noise, cfg.env.exploration_noise >= 0, "must be >= 0"),
-        (
-            "algo.rnd",
-            cfg.algo.rnd,
-            cfg.algo.rnd is None or (c.num_workers == 1 and c.backend in (None, "direct")),
-            "the RND bonus keeps its statistics in the training env: use collector.num_workers=1 and "
-            "collector.backend=null",
-        ),
-        (
-            "algo.absorbing_state",
-            cfg.algo.absorbing_state,
-            not (cfg.algo.absorbing_state and cfg.algo.adaptive),
-            "absorbing states need a fixed teacher (algo.adaptive=false): promotion reads unrewritten trajectories",
-        ),
-        (
-            "optim.precision",
-            o.precision,
-            o.precision == "fp32"
-            or (o.implementation == "fused" and cfg.algo.learner == "td3" and not masks_absorbing_actions(cfg)),
-            "bf16 is TD3's fused step only: optim.implementation=fused, algo.learner=td3, and no bootstrapped "
-            "absorbing states (DAC's masked actor runs the loss's own step)",
-        ),
-        (
-            "optim.cudagraphs",
-            o.cudagraphs,
-            not o.cudagraphs
-            or (
-                str(cfg.device).startswith("cuda")
-                and o.implementation == "fused"
-                and cfg.algo.learner == "td3"
-                and not masks_absorbing_actions(cfg)
-                and o.actor_lr_decay is None
-            ),
-            "CUDA graphs replay TD3's fused step on a GPU: device=cuda, optim.implementation=fused, "
-            "algo.learner=td3, no bootstrapped absorbing states and no optim.actor_lr_decay (a new learning "
-            "rate would capture the graph again)",
-        ),
-        (
-            "algo.reward.clip",
-            cfg.algo.reward.clip,
-            cfg.algo.reward.clip is None
-            or (len(cfg.algo.reward.clip) == 2 and 0 < cfg.algo.reward.clip[0] < cfg.algo.reward.clip[1] < 1),
-            "must be [low, high] with 0 < low < high < 1, or null",
-        ),
-        (
-            "algo.reward.shift",
-            cfg.algo.reward.shift,
-            math.isfinite(cfg.algo.reward.shift),
-            "must be a finite number",
-        ),
-        (
-            "collector.backend",
-            c.backend,
-            c.backend != "direct" or c.num_workers == 1,
-            f"direct runs one worker, but collector.num_workers={c.num_workers}",
-        ),
-        (
-            "collector.backend",
-            c.backend,
-            c.backend != "ray" or importlib.util.find_spec("ray") is not None,
-            "the ray backend needs Ray: pip install ray",
-        ),
-        ("resume", cfg.resume, cfg.resume in (True, False, "auto"), "use true, false or auto"),
-        (
-            "algo.nstep.n",
-            cfg.algo.nstep and cfg.algo.nstep.n,
-            cfg.algo.nstep is None or cfg.algo.nstep.n >= 2,
-            "must be >= 2 (algo.nstep=null for the 1-step TD loss alone)",
-        ),
-        (
-            "algo.nstep.lambda1",
-            cfg.algo.nstep and cfg.algo.nstep.lambda1,
-            cfg.algo.nstep is None or 0 < cfg.algo.nstep.lambda1 < math.inf,
-            "must be a finite number > 0",
-        ),
-        # The n-step sums are of the stored env reward, made when a transition is stored; other
-        # rewards are made at sample time for the 1-step entries only, and promoted, absorbing or
-        # SAC/BC/PPO rows have no n-step view.
-        (
-            "algo.nstep",
-            "set",
-            cfg.algo.nstep is None
-            or (
-                cfg.algo.learner == "td3"
-                and cfg.algo.reward.source == "env"
-                and cfg.algo.rnd is None
-                and not cfg.algo.adaptive
-                and not cfg.algo.absorbing_state
-            ),
-            "the n-step loss (DDPGfD) needs algo.learner=td3, algo.reward.source=env, algo.rnd=null, "
-            "algo.adaptive=false and algo.absorbing_state=false",
-        ),
-        (
-            "algo.l2_coef",
-            cfg.algo.l2_coef,
-            0 <= cfg.algo.l2_coef < math.inf and (cfg.algo.l2_coef == 0 or cfg.algo.learner in ("td3", "sac")),
-            "must be a finite number >= 0, and 0 unless algo.learner is td3 or sac (the actor's and the critic's "
-            "Adam weight decay)",
-        ),
-        (
-            "algo.reward.source",
-            cfg.algo.reward.source,
-            cfg.algo.learner != "ppo"
-            or (cfg.algo.reward.source != "env" and cfg.algo.rnd is None and not cfg.algo.absorbing_state),
-            "the PPO generator (gail, pofd) learns from D's reward (discriminator or shaped), without an RND "
-            "bonus or absorbing states",
-        ),
-        (
-            "algo.reward.coef_decay",
-            cfg.algo.reward.coef_decay,
-            0 < cfg.algo.reward.coef_decay <= 1 and (cfg.algo.reward.coef_decay == 1 or cfg.algo.learner == "ppo"),
-            "must be in (0, 1], and 1 unless algo.learner=ppo (it decays the shaping once per on-policy batch)",
-        ),
-        (
-            "collector.backend_options",
-            c.backend_options,
-            c.backend_options is None or isinstance(c.backend_options, DictConfig),
-            "must be a mapping (forwarded to TorchRL's Collector) or null",
-        ),
-        (
-            "device",
-            cfg.device,
-            cfg.device == "cpu" or torch.cuda.is_available(),
-            "CUDA is not available on this machine; use device=cpu",
-        ),
-    ]:
-        if not ok:
-            fail(key, value, why)
-    # Across fields: the off-policy loop runs the D steps and TD3 updates of every cadence crossed
-    # by a collector batch at once, after it: a batch longer than a cadence bunches them, and one
-    # that does not divide it shifts them, so the reward would come from a D that is behind.
-    if cfg.algo.learner in ("td3", "sac"):
-        cadences = [("optim.train_every_frames", o.train_every_frames)]
-        if cfg.algo.reward.source != "env" and d.steps:
-            cadences.insert(0, ("optim.discriminator.every_frames", d.every_frames))
-        for key, every in cadences:
-            if every % c.frames_per_batch:  # a synchronous collector's batch is over all its workers
-                fail(
-                    key,
-                    every,
-                    f"must be a multiple of collector.frames_per_batch={c.frames_per_batch}: a larger "
-                    f"collector batch, or one that does not divide it, runs these updates late or "
-                    f"bunched, so D's reward comes from a stale D (lower collector.frames_per_batch)",
-                )
-    # a list's length and range
-    if len(cfg.eval.video_size) != 2 or min(cfg.eval.video_size) < 16:
-        fail("eval.video_size", list(cfg.eval.video_size), "must be [width, height], each >= 16")
-    # what the chosen outputs need installed
-    if (
-        cfg.eval.video_every_frames
-        and cfg.eval.video_format == "mp4"
-        and importlib.util.find_spec("imageio_ffmpeg") is None
-    ):
-        fail("eval.video_format", "mp4", "MP4 videos need imageio-ffmpeg: pip install -e '.[video]' (or use gif)")
-    if cfg.eval.video_every_frames and "wandb" in cfg.logger.backends and importlib.util.find_spec("moviepy") is None:
-        fail(
-            "eval.video_every_frames",
-            cfg.eval.video_every_frames,
-            "wandb encodes videos with moviepy: pip install -e '.[video]' (or drop wandb from logger.backends)",
-        )
-    if "tensorboard" in cfg.logger.backends and importlib.util.find_spec("tensorboard") is None:
-        fail(
-            "logger.backends",
-            list(cfg.logger.backends),
-            "the tensorboard backend needs the tensorboard package: pip install -e '.[tensorboard]'",
-        )
+    for check in _SECTIONS:
+        check(cfg)

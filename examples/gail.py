@@ -177,9 +177,8 @@ def main(cfg):  # noqa: F821
         on_policy.empty()
         # raw observations (not the policy's normalised ones): D compares them with the teacher's
         on_policy.extend(data.reshape(-1).select(*TRANSITION_KEYS))
-        # D: one pass over the batch's rows, each step against as many teacher rows
-        steps = max(1, data.numel() // d.batch_size)
-        d_block = d_batches.sample(2 * d.batch_size, teacher_fraction=0.5, num_batches=steps)
+        # D: optim.discriminator.steps steps per batch, each on batch_size of its rows and as many teacher rows
+        d_block = d_batches.sample(2 * d.batch_size, teacher_fraction=0.5, num_batches=d.steps)
         metrics.update(discriminator_block(cfg, d_loss, optimizers["discriminator"], d_block))
         if shaped:
             reward.coef = metrics["pofd/lambda_1"] = pofd_lambda(r.coef, r.coef_decay, before // p.frames_per_batch)

@@ -5,10 +5,12 @@ frame window ``(before, frames]`` that batch covers: it acts on the cadences tha
 and returns the metrics to log (``{}`` when nothing was due). A method's extra behaviour is a part
 of the step it belongs to, chosen by the config when the step is built: DDPGfD's n-step views and
 DAC's absorbing states are how :class:`TransitionStore` stores rows, SAIL-OnPolicy's recent window
-is one more buffer it fills; an actor learning-rate decay (:class:`ActorLRDecay`) runs inside
-:class:`TD3Block`; RND's predictor (:class:`PredictorUpdate`) learns inside
-:class:`DiscriminatorBlock`, which has no steps when the reward is the env's; the other actor's
-evaluation and videos are part of :class:`Evaluations`.
+is one more buffer it fills; the learning blocks (:func:`make_learning_blocks`) run on the SAIL
+authors' frame cadence or after each episode (:class:`FrameCadence`, :class:`EpisodeCadence`), in
+either order; an actor learning-rate decay (:class:`ActorLRDecay`) runs inside :class:`TD3Block`;
+RND's predictor (:class:`PredictorUpdate`) learns inside :class:`DiscriminatorBlock`, which a
+method without a D does not have; the other actor's evaluation and videos are part of
+:class:`Evaluations`.
 """
 
 from __future__ import annotations
@@ -105,6 +107,44 @@ def finished_episodes(data, best_policy, *, before: int, frames: int) -> dict:
 # ----------------------------------------------------------------------------- the two learning blocks
 
 
+class FrameCadence:
+    """``steps`` every ``every_frames`` frames from frame ``start`` on (the SAIL authors' cadence): a
+    batch that crosses ``k`` such multiples gets ``k * steps``."""
+
+    def __init__(self, *, every_frames: int, steps: int, start: int) -> None:
+        self.every_frames, self.steps, self.start = every_frames, steps, start
+
+    def __call__(self, before: int, frames: int, data) -> int:
+        return crossings(self.every_frames, self.start, before, frames) * self.steps
+
+
+class EpisodeCadence:
+    """After each finished episode, ``steps_per_frame`` steps per frame of that episode, for the
+    episodes that end at frame ``start`` or later (Kostrikov et al.'s DAC: training after every
+    episode once the buffer holds ``start`` samples). ``data`` is one env's ``[T]`` batch (time last);
+    an episode's length is its last ``step_count + 1``."""
+
+    def __init__(self, *, steps_per_frame: float, start: int) -> None:
+        self.steps_per_frame, self.start = steps_per_frame, start
+
+    def __call__(self, before: int, frames: int, data) -> int:
+        flat = data.reshape(-1)
+        done = flat["next", "done"].reshape(-1)
+        ended_at = before + 1 + done.nonzero().reshape(-1)  # the frame count at each episode's last step
+        lengths = flat["step_count"].reshape(-1)[done] + 1
+        return round(self.steps_per_frame * int(lengths[ended_at >= self.start].sum()))
+
+
+def make_cadence(cfg: DictConfig, *, every_frames: int, steps: int):
+    """``optim.cadence``: ``frames`` (every ``every_frames`` frames, ``steps`` steps) or ``episodes``
+    (after each episode, the same steps per frame); learning starts at ``optim.start_frames``
+    (``None``: when the random warm-up ends)."""
+    start = cfg.optim.start_frames if cfg.optim.start_frames is not None else cfg.collector.init_random_frames
+    if cfg.optim.cadence == "episodes":
+        return EpisodeCadence(steps_per_frame=steps / every_frames, start=start)
+    return FrameCadence(every_frames=every_frames, steps=steps, start=start)
+
+
 class ActorLRDecay:
     """A stepwise decay of the actor's learning rate, a function of frames (a resume continues it):
     ``lr * rate ** (frames // every_frames)`` (``optim.actor_lr_decay``; Kostrikov et al.'s DAC)."""
@@ -120,8 +160,9 @@ class ActorLRDecay:
 
 
 class TD3Block:
-    """Algorithm 1's policy update: every ``every_frames`` frames after warm-up, ``updates`` gradient
-    steps on batches of ``batch_size`` rows, ``round(alpha * batch_size)`` of them the teacher's.
+    """Algorithm 1's policy update: as many gradient steps as ``cadence`` gives the batch, on batches
+    of ``batch_size`` rows, ``round(alpha * batch_size)`` of them the teacher's (alpha as
+    ``alpha_scheduler`` holds it).
 
     Neither the buffers nor D change inside a block, so its batches are drawn, and rewarded by
     the current D, in one call (``batches.sample``, under ``precision``).
@@ -130,6 +171,8 @@ class TD3Block:
         batches: a :class:`~torchrl_sail.MixedReplayBuffer` of the teacher and replay buffers whose
             transform writes the reward.
         update: ``update(batch, update_actor) -> metrics``, one gradient step (``utils.make_update``).
+        cadence: ``cadence(before, frames, data) -> steps`` (:class:`FrameCadence`, :class:`EpisodeCadence`).
+        alpha_scheduler: holds the teacher share, ``.alpha``.
         policy_delay, actor_updates_after: the actor steps at every ``policy_delay``-th gradient step
             from step ``actor_updates_after`` on.
         reward_tag: the metric that logs the block's mean reward.
@@ -144,10 +187,9 @@ class TD3Block:
         batches,
         update,
         *,
+        cadence,
+        alpha_scheduler,
         batch_size: int,
-        every_frames: int,
-        start_frames: int,
-        updates: int,
         policy_delay: int,
         actor_updates_after: int,
         reward_tag: str,
@@ -157,22 +199,18 @@ class TD3Block:
         saturation=None,
         gradient_steps: int = 0,
     ) -> None:
-        self.batches, self.update = batches, update
-        self.batch_size, self.every_frames, self.start_frames, self.updates = (
-            batch_size,
-            every_frames,
-            start_frames,
-            updates,
-        )
-        self.policy_delay, self.actor_updates_after, self.reward_tag = policy_delay, actor_updates_after, reward_tag
+        self.batches, self.update, self.cadence, self.alpha_scheduler = batches, update, cadence, alpha_scheduler
+        self.batch_size, self.policy_delay, self.actor_updates_after = batch_size, policy_delay, actor_updates_after
+        self.reward_tag = reward_tag
         self.precision = precision if precision is not None else contextlib.nullcontext()
         self.lr_decay, self.drift, self.saturation = lr_decay, drift, saturation
         self.gradient_steps = gradient_steps
 
-    def __call__(self, before: int, frames: int, alpha: float) -> dict:
-        num_updates = crossings(self.every_frames, self.start_frames, before, frames) * self.updates
+    def __call__(self, before: int, frames: int, data) -> dict:
+        num_updates = self.cadence(before, frames, data)
         if not num_updates:
             return {}
+        alpha = self.alpha_scheduler.alpha
         metrics = self.lr_decay(before) if self.lr_decay is not None else {}
         with timeit("sample"), self.precision:  # the D reward too, with precision=bf16
             block = self.batches.sample(self.batch_size, teacher_fraction=alpha, num_batches=num_updates)
@@ -195,17 +233,16 @@ class TD3Block:
         return metrics
 
 
-def make_td3_block(cfg: DictConfig, batches, update, actor, loss, optimizers: dict, *, gradient_steps: int):
-    """The TD3 (or SAC) block of ``cfg``: the authors' cadence, precision, actor lr decay and diagnostics."""
+def make_td3_block(cfg: DictConfig, batches, update, actor, loss, alpha_scheduler, optimizers, *, gradient_steps):
+    """The TD3 (or SAC) block of ``cfg``: its cadence, precision, actor lr decay and diagnostics."""
     o, td3 = cfg.optim, cfg.algo.learner == "td3"
     decay = o.actor_lr_decay
     return TD3Block(
         batches,
         update,
+        cadence=make_cadence(cfg, every_frames=o.train_every_frames, steps=o.updates_per_train),
+        alpha_scheduler=alpha_scheduler,
         batch_size=o.batch_size,
-        every_frames=o.train_every_frames,
-        start_frames=cfg.collector.init_random_frames,
-        updates=o.updates_per_train,
         policy_delay=o.policy_delay,
         actor_updates_after=o.actor_updates_after,
         reward_tag="sail/env_reward_mean" if cfg.algo.reward.source == "env" else "sail/d_reward_mean",
@@ -236,24 +273,16 @@ class PredictorUpdate:
 
 
 class DiscriminatorBlock:
-    """Algorithm 1's discriminator update: every ``every_frames`` frames after warm-up, ``steps`` D
-    steps on batches of ``batch_size`` teacher + ``batch_size`` agent rows (``utils.discriminator_block``).
-    ``steps=0`` for a method without a D (its reward is the env's)."""
+    """Algorithm 1's discriminator update: as many D steps as ``cadence`` gives the batch, each on
+    ``batch_size`` teacher + ``batch_size`` agent rows (``utils.discriminator_block``); ``after_step``
+    runs after each (RND's predictor). A method without a D has no block."""
 
-    def __init__(
-        self, cfg: DictConfig, batches, d_loss, optimizer, *, every_frames, start_frames, steps, batch_size, after_step
-    ) -> None:
+    def __init__(self, cfg: DictConfig, batches, d_loss, optimizer, *, cadence, batch_size, after_step) -> None:
         self.cfg, self.batches, self.d_loss, self.optimizer = cfg, batches, d_loss, optimizer
-        self.every_frames, self.start_frames, self.steps, self.batch_size = (
-            every_frames,
-            start_frames,
-            steps,
-            batch_size,
-        )
-        self.after_step = after_step
+        self.cadence, self.batch_size, self.after_step = cadence, batch_size, after_step
 
-    def __call__(self, before: int, frames: int) -> dict:
-        num_steps = crossings(self.every_frames, self.start_frames, before, frames) * self.steps
+    def __call__(self, before: int, frames: int, data) -> dict:
+        num_steps = self.cadence(before, frames, data)
         if not num_steps:
             return {}
         with timeit("sample"):
@@ -262,19 +291,23 @@ class DiscriminatorBlock:
             return discriminator_block(self.cfg, self.d_loss, self.optimizer, block, self.after_step)
 
 
-def make_discriminator_block(cfg: DictConfig, batches, d_loss, optimizers: dict, rnd=None, rnd_loss=None):
+def make_learning_blocks(cfg: DictConfig, td3_block: TD3Block, batches, d_loss, optimizers, rnd=None, rnd_loss=None):
+    """The batch's learning blocks in ``optim.block_order``: the SAIL authors' TD3 block then D block,
+    or Kostrikov et al.'s D block first (each TD3 block then learns from the D just updated). A
+    method whose reward is the env's has the TD3 block alone."""
     d = cfg.optim.discriminator
-    return DiscriminatorBlock(
+    if cfg.algo.reward.source == "env" or not d.steps:
+        return [td3_block]
+    d_block = DiscriminatorBlock(
         cfg,
         batches,
         d_loss,
         optimizers["discriminator"],
-        every_frames=d.every_frames,
-        start_frames=cfg.collector.init_random_frames,
-        steps=d.steps if cfg.algo.reward.source != "env" else 0,
+        cadence=make_cadence(cfg, every_frames=d.every_frames, steps=d.steps),
         batch_size=d.batch_size,
         after_step=PredictorUpdate(rnd, rnd_loss, optimizers["rnd"]) if rnd is not None else None,
     )
+    return [d_block, td3_block] if cfg.optim.block_order == "discriminator_first" else [td3_block, d_block]
 
 
 # ----------------------------------------------------------------------------- evaluation

@@ -33,9 +33,9 @@ from config_schema import register_config_schema
 from loop import (
     TeacherUpdate,
     finished_episodes,
-    make_discriminator_block,
     make_eval_envs,
     make_evaluations,
+    make_learning_blocks,
     make_recent,
     make_td3_block,
     make_transition_store,
@@ -133,8 +133,11 @@ def main(cfg):  # noqa: F821
     update_teacher = TeacherUpdate(teacher, alpha_scheduler, adaptive=cfg.algo.adaptive)
     evaluations = make_evaluations(cfg, eval_envs, actor, loss, run, teacher_return, loggers, run_dir)
     update = make_update(cfg, loss, optimizers, target_updater)
-    td3_block = make_td3_block(cfg, sail_batches, update, actor, loss, optimizers, gradient_steps=run["gradient_steps"])
-    d_block = make_discriminator_block(cfg, MixedReplayBuffer(teacher, recent), d_loss, optimizers, rnd, rnd_loss)
+    td3_block = make_td3_block(
+        cfg, sail_batches, update, actor, loss, alpha_scheduler, optimizers, gradient_steps=run["gradient_steps"]
+    )
+    d_batches = MixedReplayBuffer(teacher, recent)
+    learning_blocks = make_learning_blocks(cfg, td3_block, d_batches, d_loss, optimizers, rnd, rnd_loss)
 
     frames = run["frames"]
     collector = make_collector(cfg, env, exploration_policy, frames=frames)
@@ -161,9 +164,8 @@ def main(cfg):  # noqa: F821
                 alpha, switched = update_teacher(data, frames)
             once.update(switched)
             metrics.update(finished_episodes(data, best_policy, before=before, frames=frames))
-            # The authors' order at a shared frame: the TD3 block, then the D block.
-            metrics.update(td3_block(before, frames, alpha))
-            metrics.update(d_block(before, frames))
+            for block in learning_blocks:  # optim.block_order: the SAIL authors' TD3 block, then D block
+                metrics.update(block(before, frames, data))
             # NaN/inf stops the run here, at the logging cadence (and before any checkpoint), before
             # the weights reach the workers, an evaluation or a log.
             log_now = frames - last_log >= cfg.logger.log_every_frames or crossings(

@@ -518,3 +518,29 @@ def test_actor_drift_measures_the_blocks_change_and_the_target_gap():
     assert measured["actor/change"].item() > 0
     drift.start(batch)
     assert drift.measure()["actor/change"].item() == 0.0  # no update in between
+
+
+def test_dac_published_trains_after_each_episode_d_first_and_gail_has_torchrls_discriminator():
+    dac = make("algo=dac_published")
+    assert (dac.optim.cadence, dac.optim.block_order, dac.optim.start_frames) == (
+        "episodes",
+        "discriminator_first",
+        1000,
+    )
+    # one D step and one TD3 step per frame of each episode
+    assert dac.optim.updates_per_train / dac.optim.train_every_frames == 1.0
+    assert dac.optim.discriminator.steps / dac.optim.discriminator.every_frames == 1.0
+    cheetah = make("algo=dac_published", "env=HalfCheetah-v4")
+    assert (cheetah.collector.init_random_frames, cheetah.optim.start_frames) == (10_000, 1000)  # learning from 1000
+    check_config(dac)
+    with pytest.raises(ValueError, match=r"config optim.cadence='episodes': .*collector.num_workers=1"):
+        check_config(make("algo=dac_published", "collector.num_workers=2", "collector.frames_per_batch=50"))
+    with pytest.raises(ValueError, match=r"config optim.start_frames=-1: must be >= 0"):
+        check_config(make("optim.start_frames=-1"))
+    for algo in ("gail", "pofd"):
+        cfg = make(f"algo={algo}")
+        d = cfg.optim.discriminator
+        assert (list(cfg.network.discriminator_cells), cfg.network.discriminator_activation) == ([128, 128], "relu")
+        assert (cfg.network.discriminator_init, cfg.network.normalize_observations) == ("torch", False)
+        assert (d.lr, d.steps, d.batch_size, d.gp_coef, d.entropy_coef) == (3e-4, 1, 256, 0.0, 0.0)
+    assert make("algo=pofd").algo.reward.source == "shaped" and make("algo=pofd").algo.name == "pofd"

@@ -616,5 +616,15 @@ def test_orthogonal_init_gives_orthonormal_weights_and_xavier_stays_the_default(
     for layer in default._linears():
         fan_out, fan_in = layer.weight.shape
         assert layer.weight.abs().max() <= math.sqrt(6 / (fan_in + fan_out))  # Glorot-uniform's bound
-    with pytest.raises(ValueError, match=r"init='kaiming': must be one of \['orthogonal', 'xavier'\]"):
+    with pytest.raises(ValueError, match=r"init='kaiming': must be one of \['orthogonal', 'torch', 'xavier'\]"):
         DiscriminatorNet(5, 3, init="kaiming")
+
+
+def test_torch_init_is_nn_linears_own():
+    from torchrl_sail import DiscriminatorNet
+
+    net = DiscriminatorNet(5, 3, num_cells=(16, 4), init="torch")
+    for layer in net._linears():
+        bound = 1 / math.sqrt(layer.weight.shape[1])  # nn.Linear: Kaiming-uniform(a=sqrt(5)) and uniform biases
+        assert layer.weight.abs().max() <= bound and layer.bias.abs().max() <= bound
+        assert torch.count_nonzero(layer.bias) == layer.bias.numel()  # not the zero biases of the other inits

@@ -127,6 +127,42 @@ def test_finished_episodes_feeds_the_best_policy_and_logs_the_means():
     assert loop.finished_episodes(collected(), best, before=0, frames=6) == {}
 
 
+def test_frame_cadence_counts_the_multiples_crossed_from_its_start():
+    cadence = loop.FrameCadence(every_frames=1000, steps=50, start=2000)
+    assert [cadence(before, now, None) for before, now in [(0, 1999), (1999, 2000), (2000, 4500)]] == [0, 50, 100]
+
+
+def test_episode_cadence_trains_per_frame_of_each_episode_that_ended_after_its_start():
+    # one env, frames 1001..1005: an episode of 2 steps ends at frame 1002, one of 3 at frame 1005
+    data = collected(num_envs=1, steps=5, done_at=[(0, 1), (0, 4)])
+    data["step_count"] = torch.tensor([[0, 1, 0, 1, 2]]).unsqueeze(-1)
+    assert loop.EpisodeCadence(steps_per_frame=1.0, start=1000)(1000, 1005, data) == 2 + 3
+    assert loop.EpisodeCadence(steps_per_frame=0.5, start=1000)(1000, 1005, data) == round(0.5 * 5)
+    assert loop.EpisodeCadence(steps_per_frame=1.0, start=1003)(1000, 1005, data) == 3  # the 1st ended before
+    assert loop.EpisodeCadence(steps_per_frame=1.0, start=0)(1000, 1005, collected(num_envs=1, steps=5)) == 0
+
+
+def test_learning_blocks_in_either_order_and_no_d_block_without_a_discriminator():
+    cfg = SimpleNamespace(
+        algo=SimpleNamespace(reward=SimpleNamespace(source="discriminator")),
+        collector=SimpleNamespace(init_random_frames=0),
+        optim=SimpleNamespace(
+            cadence="frames",
+            start_frames=None,
+            block_order="td3_first",
+            discriminator=SimpleNamespace(every_frames=500, steps=10, batch_size=4),
+        ),
+    )
+    td3 = object()
+    d_opt = {"discriminator": None}
+    blocks = loop.make_learning_blocks(cfg, td3, None, None, d_opt)
+    assert blocks[0] is td3 and isinstance(blocks[1], loop.DiscriminatorBlock)
+    cfg.optim.block_order = "discriminator_first"
+    assert loop.make_learning_blocks(cfg, td3, None, None, d_opt)[1] is td3
+    cfg.algo.reward.source = "env"
+    assert loop.make_learning_blocks(cfg, td3, None, None, d_opt) == [td3]
+
+
 def test_actor_lr_decay_is_a_function_of_frames():
     optimizer = torch.optim.Adam([torch.zeros(1, requires_grad=True)], lr=1.0)
     decay = loop.ActorLRDecay(optimizer, 1e-3, rate=0.5, every_frames=100_000)
@@ -153,11 +189,11 @@ def td3_block(**kwargs):
         steps.append(update_actor)
         return {"loss_qvalue": torch.tensor(float(len(steps)))}
 
+    alpha = kwargs.pop("alpha", 0.5)
     options = dict(
         batch_size=4,
-        every_frames=1000,
-        start_frames=2000,
-        updates=3,
+        cadence=loop.FrameCadence(every_frames=1000, steps=3, start=2000),
+        alpha_scheduler=SimpleNamespace(alpha=alpha),
         policy_delay=2,
         actor_updates_after=0,
         reward_tag="sail/d_reward_mean",
@@ -169,8 +205,8 @@ def td3_block(**kwargs):
 
 def test_td3_block_runs_at_its_cadence_after_warmup():
     block, batches, steps = td3_block()
-    assert block(0, 1500, alpha=0.5) == {} and batches.calls == []  # warm-up
-    metrics = block(1500, 3000, alpha=0.5)  # crosses 2000 and 3000: two blocks' worth
+    assert block(0, 1500, None) == {} and batches.calls == []  # warm-up
+    metrics = block(1500, 3000, None)  # crosses 2000 and 3000: two blocks' worth
     assert batches.calls == [(4, 0.5, 6)]
     assert steps == [False, True, False, True, False, True]  # every policy_delay-th step moves the actor
     assert metrics["sail/d_reward_mean"].item() == pytest.approx(sum(range(24)) / 24)
@@ -179,8 +215,8 @@ def test_td3_block_runs_at_its_cadence_after_warmup():
 
 
 def test_td3_block_continues_a_resumed_count_and_delays_the_actor():
-    block, _, steps = td3_block(gradient_steps=5, actor_updates_after=8, policy_delay=1)
-    block(2500, 3000, alpha=0.0)
+    block, _, steps = td3_block(gradient_steps=5, actor_updates_after=8, policy_delay=1, alpha=0.0)
+    block(2500, 3000, None)
     assert steps == [False, False, True] and block.gradient_steps == 8  # steps 6, 7, 8
 
 
@@ -190,9 +226,10 @@ def test_td3_block_decays_the_lr_and_measures_saturation_on_agent_rows_only():
         lr_decay=lambda frames: seen.append(frames) or {"sail/actor_lr": 1.0},
         saturation=lambda batch: {"actor/saturation": torch.tensor(0.25)},
     )
-    metrics = block(2500, 3000, alpha=0.5)
+    metrics = block(2500, 3000, None)
     assert seen == [2500] and metrics["sail/actor_lr"] == 1.0 and "actor/saturation" in metrics
-    assert "actor/saturation" not in block(3500, 4000, alpha=1.0)  # a teacher-only batch
+    block.alpha_scheduler.alpha = 1.0  # a teacher-only batch
+    assert "actor/saturation" not in block(3500, 4000, None)
 
 
 class DLoss:
@@ -218,9 +255,7 @@ def d_block(steps: int, after_step=None, max_accuracy=None):
         batches,
         d_loss,
         optimizer,
-        every_frames=500,
-        start_frames=1000,
-        steps=steps,
+        cadence=loop.FrameCadence(every_frames=500, steps=steps, start=1000),
         batch_size=2,
         after_step=after_step,
     )
@@ -230,8 +265,8 @@ def d_block(steps: int, after_step=None, max_accuracy=None):
 def test_discriminator_block_steps_at_its_cadence():
     calls = []
     block, batches, d_loss = d_block(steps=2, after_step=lambda batch: calls.append(batch.shape) or {"rnd/x": 1.0})
-    assert block(0, 900) == {} and batches.calls == []  # warm-up
-    metrics = block(1000, 2000)  # crosses 1500 and 2000
+    assert block(0, 900, None) == {} and batches.calls == []  # warm-up
+    metrics = block(1000, 2000, None)  # crosses 1500 and 2000
     assert batches.calls == [(4, 0.5, 4)] and len(calls) == 4  # 2 teacher + 2 agent rows per step
     # 4 SGD steps on (w - 1)^2 from 0 at lr 0.1: w = 1 - 0.8^4
     assert d_loss.weight.item() == pytest.approx(1 - 0.8**4)
@@ -240,12 +275,12 @@ def test_discriminator_block_steps_at_its_cadence():
 
 def test_discriminator_block_without_steps_samples_nothing():
     block, batches, _ = d_block(steps=0)
-    assert block(1000, 5000) == {} and batches.calls == []
+    assert block(1000, 5000, None) == {} and batches.calls == []
 
 
 def test_discriminator_block_skips_steps_beyond_max_accuracy():
     block, _, d_loss = d_block(steps=1, max_accuracy=0.5)
-    assert block(1000, 1500)["d/skipped"] == 1.0 and d_loss.weight.item() == 0.0
+    assert block(1000, 1500, None)["d/skipped"] == 1.0 and d_loss.weight.item() == 0.0
 
 
 def test_evaluations_at_their_cadence_with_the_other_actor_and_videos(monkeypatch):

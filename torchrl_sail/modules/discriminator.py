@@ -145,8 +145,9 @@ class RunningObsNorm(nn.Module):
         return f"shape={tuple(self.shape)}, min_var={self.min_var}"
 
 
-# the linear layers' weight init by name: the SAIL authors' (tf's fully_connected default) and DAC's release
-_INITS = {"xavier": nn.init.xavier_uniform_, "orthogonal": nn.init.orthogonal_}
+# the linear layers' weight init by name: the SAIL authors' (tf's fully_connected default), DAC's release, and
+# PyTorch's own nn.Linear init (Kaiming-uniform weights and uniform biases: TorchRL's GAIL example)
+_INITS = {"xavier": nn.init.xavier_uniform_, "orthogonal": nn.init.orthogonal_, "torch": None}
 
 
 class DiscriminatorNet(nn.Module):
@@ -191,8 +192,8 @@ class DiscriminatorNet(nn.Module):
             plain forward, which stays pure. Not the authors' (they have none). Defaults to
             ``False``.
         init (str, optional): the linear layers' weights: ``"xavier"`` (Glorot-uniform, the SAIL
-            authors') or ``"orthogonal"`` (gain 1, Kostrikov et al.'s DAC release); biases zero.
-            Defaults to ``"xavier"``.
+            authors') or ``"orthogonal"`` (gain 1, Kostrikov et al.'s DAC release), biases zero; or
+            ``"torch"``, ``nn.Linear``'s own init (TorchRL's GAIL example). Defaults to ``"xavier"``.
 
     Examples:
         >>> import torch
@@ -251,9 +252,12 @@ class DiscriminatorNet(nn.Module):
             for layer in self._linears():
                 if hasattr(layer, "parametrizations"):
                     nn.utils.parametrize.remove_parametrizations(layer, "weight", leave_parametrized=False)
-                _INITS[self.init](layer.weight)
-                if layer.bias is not None:
-                    nn.init.zeros_(layer.bias)
+                if self.init == "torch":
+                    layer.reset_parameters()
+                else:
+                    _INITS[self.init](layer.weight)
+                    if layer.bias is not None:
+                        nn.init.zeros_(layer.bias)
                 if self.spectral_norm:
                     nn.utils.parametrizations.spectral_norm(layer)
         self.train(self.training)  # the new normalisations do not iterate in a forward

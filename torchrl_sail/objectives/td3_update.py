@@ -310,18 +310,7 @@ class TD3Update:
             )
         self.cudagraphs = cudagraphs
         if cudagraphs:
-            if implementation != "fused":
-                raise ValueError("cudagraphs=True replays the fused step: use implementation='fused'.")
-            if self._device_type != "cuda":
-                raise ValueError(f"cudagraphs=True needs the loss on a CUDA device, got {loss.max_action.device}.")
-            for name, optimizer in (("critic_optimizer", critic_optimizer), ("actor_optimizer", actor_optimizer)):
-                if not all(group.get("capturable", False) for group in optimizer.param_groups):
-                    raise ValueError(
-                        f"cudagraphs=True needs {name} built with capturable=True (e.g. "
-                        "torch.optim.Adam(params, capturable=True)): a graph cannot read its step count on the host."
-                    )
-            if not (isinstance(cudagraph_warmup, int) and cudagraph_warmup >= 1):
-                raise ValueError(f"cudagraph_warmup must be an int >= 1, got {cudagraph_warmup!r}.")
+            _check_cudagraphs(implementation, loss, critic_optimizer, actor_optimizer, cudagraph_warmup)
         self.cudagraph_warmup = cudagraph_warmup
         self._graphs: dict[bool, CudaGraphModule] = {}
         self._graphed_values = None
@@ -673,3 +662,19 @@ class TD3Update:
             f"{type(self).__name__}(loss={type(self.loss).__name__}, implementation={self.implementation!r}, "
             f"precision={self.precision!r}{nstep}, cudagraphs={self.cudagraphs})"
         )
+
+
+def _check_cudagraphs(implementation: str, loss, critic_optimizer, actor_optimizer, cudagraph_warmup) -> None:
+    """What ``TD3Update(cudagraphs=True)`` needs: the fused step, a CUDA loss, capturable optimizers."""
+    if implementation != "fused":
+        raise ValueError("cudagraphs=True replays the fused step: use implementation='fused'.")
+    if loss.max_action.device.type != "cuda":
+        raise ValueError(f"cudagraphs=True needs the loss on a CUDA device, got {loss.max_action.device}.")
+    for name, optimizer in (("critic_optimizer", critic_optimizer), ("actor_optimizer", actor_optimizer)):
+        if not all(group.get("capturable", False) for group in optimizer.param_groups):
+            raise ValueError(
+                f"cudagraphs=True needs {name} built with capturable=True (e.g. "
+                "torch.optim.Adam(params, capturable=True)): a graph cannot read its step count on the host."
+            )
+    if not (isinstance(cudagraph_warmup, int) and cudagraph_warmup >= 1):
+        raise ValueError(f"cudagraph_warmup must be an int >= 1, got {cudagraph_warmup!r}.")
