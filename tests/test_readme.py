@@ -38,4 +38,4 @@ def test_ci_runs_the_readmes_test_commands():
     commands = [line.split("#")[0].strip() for line in block.splitlines() if line.startswith("python -m pytest")]
     ci = [line.strip() for line in (REPO / ".ci" / "run").read_text().splitlines()]
     assert commands == [line for line in ci if line.startswith("python -m pytest")]
-    assert '.[test' in next(line for line in ci if "pip install" in line and "-e" in line)
+    assert ".[test" in next(line for line in ci if "pip install" in line and "-e" in line)
