@@ -6,6 +6,14 @@ batches 256 + 256. This follows TorchRL's :class:`~torchrl.data.OfflineToOnlineR
 (exact per-call counts, ``torch.cat``, teacher rows first, a read-side transform on the
 concatenated batch), but wraps two buffers the user built instead of owning the agent
 buffer, accepts a teacher share of 0 or 1, and tags each row with its source.
+
+It is not built on that class because SAIL's use breaks its contract in four places: its offline
+side is immutable, while SAIL's teacher buffer takes promoted trajectories; it builds the online
+buffer itself from a storage, where SAIL's agent buffer is the user's (and is checkpointed as
+theirs); its constructor refuses a share of 0 or 1, SAIL's alpha after the switch and the
+teacher-only batches; and it has neither the source tag that ``SAILLoss`` and the
+discriminator read nor the per-row ids and multi-batch blocks (``num_batches``) that let a block's
+reward be computed once per distinct row.
 """
 
 from __future__ import annotations
