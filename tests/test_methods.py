@@ -30,8 +30,17 @@ def outputs_written(run_dir, algo, frames):
 
 
 # dac_published at test scale: its actor starts at gradient step 60 (of 50 per 1000 frames) and its lr
-# halves every 1000 frames
-EXTRA = {"dac_published": ["optim.actor_updates_after=60", "optim.actor_lr_decay.every_frames=1000"]}
+# halves every 1000 frames; on the frame cadence, whose counts are known in advance (its own cadence,
+# after each episode, is tests/test_loop.py's EpisodeCadence)
+EXTRA = {
+    "dac_published": [
+        "optim.actor_updates_after=60",
+        "optim.actor_lr_decay.every_frames=1000",
+        "optim.cadence=frames",
+        "optim.block_order=td3_first",
+        "optim.start_frames=null",
+    ]
+}
 
 
 @pytest.mark.parametrize("algo", ["dac", "dac_published", "ddpgfd", "pofd_td3", "td3_delayed", "sail_rnd", "sail_sac"])
@@ -178,6 +187,8 @@ def test_gail_runs_on_policy_and_resumes(tmp_path, teacher_dir):
         "env=Hopper-v4",
         f"teacher.path={teacher_dir / HOPPER}",
         "algo.ppo.frames_per_batch=512",
+        # D's own normaliser (TorchRL's GAIL D has none) shows which observations D saw, below
+        "network.normalize_observations=true",
         "eval.every_frames=1024",
         "eval.episodes=1",
         "checkpoint.every_frames=1024",
@@ -207,7 +218,7 @@ def test_gail_runs_on_policy_and_resumes(tmp_path, teacher_dir):
     n = d["module.obs_norm.count"]
     mean = d["module.obs_norm.sum"][0] / n
     std = (d["module.obs_norm.sumsq"][0] / n - mean**2).sqrt()
-    assert n > 4000 and mean > 0.7 and std < 0.5
+    assert 2048 <= n < 2049 and mean > 0.7 and std < 0.5  # 4 batches x 1 D step x (256 teacher + 256 agent rows)
 
     run(run_dir, *args, "collector.total_frames=3072", script="gail.py")  # continued from the 2048-frame checkpoint
     assert [frame for frame, _ in read_scalar(run_dir, "eval/return")] == [1024, 2048, 3072]
