@@ -99,8 +99,9 @@ def finished_episodes(data, best_policy, *, before: int, frames: int) -> dict:
         metrics["train/dense_return"] = flat["next", "episode_return"][done].mean()
         metrics["train/delayed_reward"] = flat["next", "reward"][done].mean()
         metrics["train/episode_length"] = flat["step_count"][done].float().mean() + 1
-    if ("next", "intrinsic_reward") in flat.keys(True):
-        metrics["train/intrinsic_reward"] = flat["next", "intrinsic_reward"].mean()
+    bonus = flat.get(("next", "intrinsic_reward"), None)  # SAIL-RND's
+    if bonus is not None:
+        metrics["train/intrinsic_reward"] = bonus.mean()
     return metrics
 
 
