@@ -93,6 +93,13 @@ TRUSTED_ORDER = (
     ("Swimmer-v4", "paper"),
     ("Hopper-v4", "shipped"),
 )
+# The paper's whole comparison with its teachers, seeds 0-2 (its own scale): Table 1's exploration
+# variants (Curiosity, Entropy) and Figure 2's baselines on the four envs, Figure 3's on-policy D and
+# Figure 4's ablations on Hopper and HalfCheetah, at 300k frames; SAIL at Table 1's 1M frames.
+COMPARISON_METHODS = ("sail_rnd", "sail_sac", "gail", "pofd", "ddpgfd")
+ABLATIONS = ("sail_onpolicy", "sail_no_lfd", "sail_no_adapt")
+ABLATION_ENVS = ("Hopper-v4", "HalfCheetah-v4")
+COMPARISON_SEEDS = (0, 1, 2)
 # the stages that run SAIL on the weak teachers (a teacher label "<weak teacher>[-<stage>]")
 WEAK_STAGES = ("weak", "preact", "centred", "logit")
 # D's logit log D - log(1 - D), negative on agent rows: it can pay a fall, so only where no fall ends an episode
@@ -241,6 +248,12 @@ def plan() -> list[Cell]:
         ]
         if seed >= 3:
             cells += [Cell("trusted", env, method, seed, 300_000) for env in ENVS for method in ("sail", "dac")]
+    # The paper's comparison, after the trusted default is decided (its SAIL rows use the default of
+    # the commit they run from): the 300k rows seed by seed, then Table 1 at 1M.
+    for seed in COMPARISON_SEEDS:
+        cells += [Cell("comparison", env, method, seed, 300_000) for env in ENVS for method in COMPARISON_METHODS]
+        cells += [Cell("comparison", env, method, seed, 300_000) for env in ABLATION_ENVS for method in ABLATIONS]
+    cells += [Cell("table1", env, "sail", seed, 1_000_000) for seed in COMPARISON_SEEDS for env in ENVS]
     return cells
 
 
@@ -370,7 +383,20 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--stages",
         nargs="+",
-        choices=["main", "scale", "teachers", "buffer", "weak", "precision", "preact", "centred", "logit", "trusted"],
+        choices=[
+            "main",
+            "scale",
+            "teachers",
+            "buffer",
+            "weak",
+            "precision",
+            "preact",
+            "centred",
+            "logit",
+            "trusted",
+            "comparison",
+            "table1",
+        ],
         help=f"the stages to run (default: {' '.join(DEFAULT_STAGES)}) or, with --collect, to copy (default: "
         "all); weak (SAIL with weak teachers), precision (fp32 against bf16: it needs bf16 hardware), preact "
         "(SAIL with the actor's pre-tanh penalty), centred (SAIL with its reward centred at D = 1/2) and logit "

@@ -173,6 +173,25 @@ class NStepConfig:
 
 
 @dataclass
+class PrioritizedReplayConfig:
+    """DDPGfD's prioritized replay over the demonstrations and the agent's replay together
+    (:class:`~torchrl_sail.PrioritizedMixedReplayBuffer`): priority ``delta^2 + action_grad_coef *
+    |grad_a Q_1(s, a)|^2 + eps`` (``+ teacher_eps`` on demonstration rows), drawn with probability
+    ``p^alpha / sum p^alpha``, importance weights ``(N P)^-beta`` over their max.
+
+    The paper's values could not be read offline: these are the one public DDPGfD implementation's
+    that sets all five (medipixel/rl_algorithms, ``per_alpha``, ``per_beta``, ``per_eps``,
+    ``per_eps_demo``, ``lambda3``).
+    """
+
+    alpha: float = 0.3
+    beta: float = 1.0
+    eps: float = 1.0e-6
+    teacher_eps: float = 1.0  # epsilon_D: the demonstrations' priority bonus
+    action_grad_coef: float = 1.0  # lambda_3
+
+
+@dataclass
 class AlgoConfig:
     """The method: SAIL (the authors' task gail-lfd-adaptive-dynamic) with these defaults;
     ``conf/algo/<method>.yaml`` sets ``name`` and what differs."""
@@ -197,6 +216,8 @@ class AlgoConfig:
     sac: SACConfig = field(default_factory=SACConfig)
     bc: BCConfig = field(default_factory=BCConfig)
     nstep: NStepConfig | None = None  # DDPGfD's n-step loss (null: the 1-step TD loss alone)
+    # DDPGfD's prioritized replay (null: batches of round(alpha * B) teacher rows, the rest agent rows)
+    per: PrioritizedReplayConfig | None = None
     l2_coef: float = 0.0  # DDPGfD's lambda_2: L2 on the actor's and the critic's parameters (Adam weight_decay)
 
 
@@ -706,6 +727,35 @@ def _check_algo_nstep(cfg: DictConfig) -> None:
     )
 
 
+def _check_algo_per(cfg: DictConfig) -> None:
+    """DDPGfD's prioritized replay, ``algo.per.*``."""
+    a, p = cfg.algo, cfg.algo.per
+    _check(
+        [
+            *(
+                (f"algo.per.{key}", p[key], 0 <= p[key] < math.inf, "must be a finite number >= 0")
+                for key in ("alpha", "beta", "teacher_eps", "action_grad_coef")
+                if p is not None
+            ),
+            (
+                "algo.per.eps",
+                p and p.eps,
+                p is None or 0 < p.eps < math.inf,
+                "must be a finite number > 0 (a row of priority 0 would get an infinite importance weight)",
+            ),
+            # the priorities span the teacher rows held at the start; each step's batch is drawn
+            # after the step before set its rows' priorities, which a CUDA graph's replay cannot see
+            (
+                "algo.per",
+                "set",
+                p is None or (a.learner == "td3" and not a.adaptive and not cfg.optim.cudagraphs),
+                "prioritized replay (DDPGfD) needs algo.learner=td3, algo.adaptive=false (a fixed teacher buffer) "
+                "and optim.cudagraphs=false",
+            ),
+        ]
+    )
+
+
 def _check_algo_reward(cfg: DictConfig) -> None:
     """``algo.reward.*``: D's clip and shift, and the sources and schedule a learner can use."""
     a, r = cfg.algo, cfg.algo.reward
@@ -976,6 +1026,7 @@ _SECTIONS = (
     _check_collector_backend,
     _check_optim_step,
     _check_algo_nstep,
+    _check_algo_per,
     _check_algo_reward,
     _check_discriminator,
     _check_optim,

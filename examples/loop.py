@@ -21,10 +21,18 @@ import torch
 from omegaconf import DictConfig
 from run_utils import crossings, evaluate_actor, record_evaluation
 from torchrl import timeit
-from utils import ActorDrift, actor_saturation, discriminator_block, make_absorbing, make_nstep, make_replay
+from utils import (
+    ActorDrift,
+    actor_saturation,
+    discriminator_block,
+    make_absorbing,
+    make_nstep,
+    make_replay,
+    stored_keys,
+)
 from video import log_video, make_render_env
 
-from torchrl_sail import TRANSITION_KEYS
+from torchrl_sail import TRANSITION_KEYS, MixedReplayBuffer, PrioritizedMixedReplayBuffer
 
 # ----------------------------------------------------------------------------- store and promote
 
@@ -160,17 +168,77 @@ class ActorLRDecay:
         return {"sail/actor_lr": lr}
 
 
+def make_td3_batches(cfg: DictConfig, teacher, replay, reward):
+    """The TD3 batches: ``round(alpha * B)`` teacher rows each (``MixedReplayBuffer``), or DDPGfD's
+    prioritized replay over the demonstrations and the replay together (``algo.per``)."""
+    keys, per = stored_keys(cfg), cfg.algo.per
+    if per is None:
+        return MixedReplayBuffer(teacher, replay, transform=reward, row_id_key="row_id", keys=keys)
+    return PrioritizedMixedReplayBuffer(
+        teacher,
+        replay,
+        alpha=per.alpha,
+        beta=per.beta,
+        eps=per.eps,
+        teacher_eps=per.teacher_eps,
+        transform=reward,
+        row_id_key="row_id",
+        keys=keys,
+    )
+
+
+class PrioritizedUpdate:
+    """DDPGfD's step on a prioritized batch: the TD3 step, then its rows' new priorities,
+    ``delta^2 + lambda_3 |grad_a Q_1(s, a)|^2`` (the buffer adds ``eps``, and ``eps_D`` on
+    demonstration rows).
+
+    ``delta^2`` is the step's own squared 1-step TD error, the max over the twin critics
+    (``TD3Update(td_error=True)``, TorchRL's TD3 priority); the action gradient is the first
+    critic's (the one the actor climbs) at the batch's actions, taken before the step as the TD
+    error is.
+    """
+
+    def __init__(self, update, buffer: PrioritizedMixedReplayBuffer, loss, *, action_grad_coef: float) -> None:
+        self.update, self.buffer, self.loss, self.action_grad_coef = update, buffer, loss, action_grad_coef
+
+    def __call__(self, batch, update_actor: bool) -> dict:
+        grad_term = self.action_grad_coef * self.action_gradient(batch) if self.action_grad_coef else 0.0
+        metrics = self.update(batch, update_actor=update_actor)
+        with timeit("priority"):
+            self.buffer.update_priority(batch["index"], batch[self.loss.tensor_keys.priority] + grad_term)
+        return metrics
+
+    def action_gradient(self, batch) -> torch.Tensor:
+        """``|grad_a Q_1(s, a)|^2`` per row."""
+        loss = self.loss
+        critic, action_key = loss.qvalue_network, loss.tensor_keys.action
+        action = batch[action_key].detach().requires_grad_(True)
+        inputs = batch.select(*critic.in_keys).copy().set(action_key, action)
+        with torch.enable_grad(), loss.qvalue_network_params[0].to_module(critic):
+            q = critic(inputs)[loss.tensor_keys.state_action_value]
+            (grad,) = torch.autograd.grad(q.sum(), action)
+        return grad.pow(2).sum(-1)
+
+
+def make_prioritized_update(cfg: DictConfig, update, batches, loss):
+    """``update``, setting DDPGfD's priorities after each step with ``algo.per`` (unchanged without)."""
+    per = cfg.algo.per
+    return update if per is None else PrioritizedUpdate(update, batches, loss, action_grad_coef=per.action_grad_coef)
+
+
 class TD3Block:
     """Algorithm 1's policy update: as many gradient steps as ``cadence`` gives the batch, on batches
     of ``batch_size`` rows, ``round(alpha * batch_size)`` of them the teacher's (alpha as
     ``alpha_scheduler`` holds it).
 
     Neither the buffers nor D change inside a block, so its batches are drawn, and rewarded by
-    the current D, in one call (``batches.sample``, under ``precision``).
+    the current D, in one call (``batches.sample``, under ``precision``). From a
+    :class:`~torchrl_sail.PrioritizedMixedReplayBuffer` (DDPGfD), each step draws its own batch,
+    since the step before changed the priorities (``update`` sets them: :class:`PrioritizedUpdate`).
 
     Args:
         batches: a :class:`~torchrl_sail.MixedReplayBuffer` of the teacher and replay buffers whose
-            transform writes the reward.
+            transform writes the reward, or a :class:`~torchrl_sail.PrioritizedMixedReplayBuffer`.
         update: ``update(batch, update_actor) -> metrics``, one gradient step (``utils.make_update``).
         cadence: ``cadence(before, frames, data) -> steps`` (:class:`FrameCadence`, :class:`EpisodeCadence`).
         alpha_scheduler: holds the teacher share, ``.alpha``.
@@ -206,6 +274,7 @@ class TD3Block:
         self.precision = precision if precision is not None else contextlib.nullcontext()
         self.lr_decay, self.drift, self.saturation = lr_decay, drift, saturation
         self.gradient_steps = gradient_steps
+        self.prioritized = isinstance(batches, PrioritizedMixedReplayBuffer)
 
     def __call__(self, before: int, frames: int, data) -> dict:
         num_updates = self.cadence(before, frames, data)
@@ -213,25 +282,42 @@ class TD3Block:
             return {}
         alpha = self.alpha_scheduler.alpha
         metrics = self.lr_decay(before) if self.lr_decay is not None else {}
-        with timeit("sample"), self.precision:  # the D reward too, with precision=bf16
-            block = self.batches.sample(self.batch_size, teacher_fraction=alpha, num_batches=num_updates)
-        metrics[self.reward_tag] = block["next", "reward"].mean()
-        if self.drift is not None:
-            self.drift.start(block[0])
+        if self.prioritized:
+            batches, drawn = self._prioritized(num_updates), []
+        else:
+            with timeit("sample"), self.precision:  # the D reward too, with precision=bf16
+                block = self.batches.sample(self.batch_size, teacher_fraction=alpha, num_batches=num_updates)
+            metrics[self.reward_tag] = block["next", "reward"].mean()
+            batches, drawn = block.unbind(0), None
         last = {}
-        for batch in block.unbind(0):
+        for step, batch in enumerate(batches):
+            if step == 0 and self.drift is not None:
+                self.drift.start(batch)
+            if drawn is not None:
+                drawn.append(batch.select(("next", "reward"), "is_teacher"))
             self.gradient_steps += 1
             update_actor = (
                 self.gradient_steps % self.policy_delay == 0 and self.gradient_steps >= self.actor_updates_after
             )
             with timeit("update"):
                 last.update(self.update(batch, update_actor=update_actor))
+        if drawn is not None:  # and the teacher share the priorities gave
+            drawn = torch.stack(drawn)
+            metrics[self.reward_tag] = drawn["next", "reward"].mean()
+            metrics["sail/teacher_share"] = drawn["is_teacher"].float().mean()
         metrics.update({f"sail/{key}": value for key, value in last.items()})
         if self.drift is not None:
             metrics.update(self.drift.measure())
         if alpha < 1 and self.saturation is not None:  # the batch holds agent rows
             metrics.update(self.saturation(batch))
         return metrics
+
+    def _prioritized(self, num_updates: int):
+        """One batch per step: each step's new priorities change the next step's draw."""
+        for _ in range(num_updates):
+            with timeit("sample"), self.precision:
+                batch = self.batches.sample(self.batch_size)
+            yield batch
 
 
 def make_td3_block(cfg: DictConfig, batches, update, actor, loss, alpha_scheduler, optimizers, *, gradient_steps):

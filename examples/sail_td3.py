@@ -36,7 +36,9 @@ from loop import (
     make_eval_envs,
     make_evaluations,
     make_learning_blocks,
+    make_prioritized_update,
     make_recent,
+    make_td3_batches,
     make_td3_block,
     make_transition_store,
 )
@@ -69,7 +71,6 @@ from utils import (
     make_rnd,
     make_teacher,
     make_update,
-    stored_keys,
 )
 
 from torchrl_sail import DivergenceCheck, MixedReplayBuffer
@@ -101,6 +102,12 @@ def main(cfg):  # noqa: F821
     # the authors' best policy: the actor at the best mean of the last training returns
     best_policy = BestPolicy(loss, every_frames=cfg.eval.best_policy.every_frames, window=cfg.eval.best_policy.window)
 
+    # --- Algorithm 1's TD3 batches get the reward of the *current* D (and RND predictor) at sample
+    # time (reward.source=env: the env's alone), D once per distinct stored row of a block; DDPGfD's
+    # (algo.per) are drawn by prioritized replay over the demonstrations and the replay together.
+    reward = make_reward(cfg, discriminator, rnd, row_id_key="row_id")
+    sail_batches = make_td3_batches(cfg, teacher, replay, reward)
+
     # --- everything a stopped run needs to continue, saved and restored as one
     run = make_run(cfg)
     stateful = {
@@ -115,6 +122,8 @@ def main(cfg):  # noqa: F821
         **{f"optim_{name}": optimizer for name, optimizer in optimizers.items()},
         **({"recent": FilledRows(recent)} if recent is not replay else {}),
         **({"rnd": rnd} if rnd is not None else {}),
+        # components load in name order: the priorities after the replay's rows they are for
+        **({"replay_priorities": sail_batches} if cfg.algo.per is not None else {}),
     }
     checkpoint = Checkpoint(**stateful)
     start_or_resume(
@@ -126,13 +135,10 @@ def main(cfg):  # noqa: F821
         env.set_seed(cfg.seed + run["frames"])  # a different episode stream than the one before the stop
     loggers = make_loggers(cfg, run_dir, run["loggers"])
 
-    # --- Algorithm 1's steps. TD3 batches get the reward of the *current* D (and RND predictor) at
-    # sample time (reward.source=env: the env's alone), D once per distinct stored row of a block.
-    reward = make_reward(cfg, discriminator, rnd, row_id_key="row_id")
-    sail_batches = MixedReplayBuffer(teacher, replay, transform=reward, row_id_key="row_id", keys=stored_keys(cfg))
+    # --- Algorithm 1's steps
     update_teacher = TeacherUpdate(teacher, alpha_scheduler, adaptive=cfg.algo.adaptive)
     evaluations = make_evaluations(cfg, eval_envs, actor, loss, run, teacher_return, loggers, run_dir)
-    update = make_update(cfg, loss, optimizers, target_updater)
+    update = make_prioritized_update(cfg, make_update(cfg, loss, optimizers, target_updater), sail_batches, loss)
     td3_block = make_td3_block(
         cfg, sail_batches, update, actor, loss, alpha_scheduler, optimizers, gradient_steps=run["gradient_steps"]
     )

@@ -600,6 +600,7 @@ def make_update(cfg: DictConfig, loss, optimizers: dict, target_updater):
             precision=cfg.optim.precision,
             actor_max_grad_norm=cfg.optim.actor_max_grad_norm,
             cudagraphs=cfg.optim.cudagraphs,
+            td_error=cfg.algo.per is not None,  # DDPGfD's priorities start from each row's delta^2
             **nstep_kwargs,
         )
     steps = [optimizers[name] for name in ("critic", "actor", "alpha")]

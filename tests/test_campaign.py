@@ -40,6 +40,8 @@ def test_plan_fills_the_table_seed_0_first():
         "centred": 6,
         "logit": 7,
         "trusted": 8,
+        "comparison": 9,
+        "table1": 10,
     }
     stages = [order[c.stage] for c in cells]
     assert stages == sorted(stages)
@@ -283,7 +285,7 @@ def test_matrix_records_every_stage_and_label(tmp_path, monkeypatch):
         campaign.subprocess, "run", lambda cmd, **kw: launched.append(cmd) or argparse.Namespace(returncode=0)
     )
     assert campaign.main(["--teachers-dir", str(teachers), "--out", str(tmp_path / "out"), "--jobs", "1"]) == 0
-    never = ("weak", "precision", "preact", "centred", "logit", "trusted")
+    never = ("weak", "precision", "preact", "centred", "logit", "trusted", "comparison", "table1")
     default = [c for c in campaign.plan() if c.teacher != "random" and c.stage not in never]
     assert len(launched) == len(default)  # not the weak, precision and remedy stages: never defaults
     main = json.loads((tmp_path / "out" / "main" / "matrix.json").read_text())
@@ -421,6 +423,30 @@ def test_trusted_stage_confirms_the_candidate_on_eight_teachers_beside_its_compa
     assert len(lines) == 74 and "teacher.path=" not in lines[0]  # the shipped teacher: the env's default
     assert lines[0].endswith(f"hydra.run.dir={out / 'trusted' / 'shipped-trusted' / 'Swimmer-v4' / 'sail' / 'seed0'}")
     assert f"teacher.path={teachers / campaign.PAPER_TEACHERS['HalfCheetah-v4']} " in lines[1]
+
+
+def test_comparison_stages_run_every_row_of_the_papers_comparison_on_three_seeds():
+    """Table 1's variants and Figure 2's baselines on the four envs, Figures 3-4's variants on Hopper and
+    HalfCheetah (300k frames, seed by seed), then SAIL at 1M frames on the four envs."""
+    cells = campaign.plan()
+    comparison = [c for c in cells if c.stage == "comparison"]
+    counts = Counter((c.method, c.env) for c in comparison)
+    for method in ("sail_rnd", "sail_sac", "gail", "pofd", "ddpgfd"):
+        assert all(counts[method, env] == 3 for env in ENVS)
+    for method in ("sail_onpolicy", "sail_no_lfd", "sail_no_adapt"):
+        assert {env: counts[method, env] for env in ENVS} == {
+            "Hopper-v4": 3,
+            "HalfCheetah-v4": 3,
+            "Walker2d-v4": 0,
+            "Swimmer-v4": 0,
+        }
+    assert len(comparison) == 78 and {c.frames for c in comparison} == {300_000}
+    assert [c.seed for c in comparison] == sorted(c.seed for c in comparison)
+    assert all(c.teacher == "paper" and not c.overrides for c in comparison)
+    table1 = [(c.env, c.method, c.seed, c.frames) for c in cells if c.stage == "table1"]
+    assert sorted(table1) == sorted((env, "sail", seed, 1_000_000) for env in ENVS for seed in (0, 1, 2))
+    scripts = {c.method: campaign.script_for(c.method).name for c in comparison}
+    assert scripts["gail"] == scripts["pofd"] == "gail.py" and scripts["ddpgfd"] == "sail_td3.py"
 
 
 def test_envs_and_seeds_keep_only_their_cells(tmp_path, capsys):

@@ -134,6 +134,9 @@ def test_optional_blocks_are_typed_when_set():
     assert make().algo.nstep is None and make().algo.l2_coef == 0.0  # the 1-step methods: no n-step view, no L2
     ddpgfd = make("algo=ddpgfd").algo
     assert (ddpgfd.nstep.n, ddpgfd.nstep.lambda1, ddpgfd.l2_coef) == (10, 1.0, 1e-5)
+    per = ddpgfd.per
+    assert (per.alpha, per.beta, per.eps, per.teacher_eps, per.action_grad_coef) == (0.3, 1.0, 1e-6, 1.0, 1.0)
+    assert make().algo.per is None and make("algo=ddpgfd", "algo.per=null").algo.per is None
     with pytest.raises(ConfigCompositionException) as err:
         make("algo=ddpgfd", "algo.nstep.n=ten")
     assert "full_key: algo.nstep.n" in str(err.value.__cause__)
@@ -175,6 +178,13 @@ def test_optional_blocks_are_typed_when_set():
         (["algo=ddpgfd", "algo.reward.source=discriminator"], "the n-step loss (DDPGfD) needs"),  # sample-time reward
         (["algo=ddpgfd", "algo.l2_coef=-1e-5"], "algo.l2_coef=-1e-05: must be a finite number >= 0"),
         (["algo=bc", "algo.l2_coef=1e-5"], "and 0 unless algo.learner is td3 or sac"),
+        (["algo=ddpgfd", "algo.per.eps=0"], "algo.per.eps=0.0: must be a finite number > 0 (a row of priority 0"),
+        (["algo=ddpgfd", "algo.per.alpha=-0.5"], "algo.per.alpha=-0.5: must be a finite number >= 0"),
+        (["algo=ddpgfd", "algo.per.action_grad_coef=inf"], "algo.per.action_grad_coef=inf: must be a finite"),
+        (
+            ["algo=ddpgfd", "algo.nstep=null", "algo.adaptive=true"],
+            "prioritized replay (DDPGfD) needs algo.learner=td3, algo.adaptive=false",
+        ),
         # a collector batch longer than D's cadence, or one that does not divide it
         (
             ["collector.frames_per_batch=1000"],

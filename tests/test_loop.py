@@ -16,9 +16,18 @@ sys.path.insert(0, str(REPO / "examples"))
 
 import loop  # noqa: E402
 from run_utils import RunCheckpoint, RunClock  # noqa: E402
+from tensordict.nn import TensorDictModule, TensorDictSequential  # noqa: E402
 from torchrl import timeit  # noqa: E402
+from torchrl.data import Bounded, LazyTensorStorage, TensorDictReplayBuffer  # noqa: E402
+from torchrl.modules import MLP, TanhModule, ValueOperator  # noqa: E402
 
-from torchrl_sail import AbsorbingStateTransform, AlphaScheduler, NStepTransform  # noqa: E402
+from torchrl_sail import (  # noqa: E402
+    AbsorbingStateTransform,
+    AlphaScheduler,
+    NStepTransform,
+    PrioritizedMixedReplayBuffer,
+    SAILLoss,
+)
 
 
 def collected(num_envs: int = 2, steps: int = 3, done_at=None) -> TensorDict:
@@ -230,6 +239,56 @@ def test_td3_block_decays_the_lr_and_measures_saturation_on_agent_rows_only():
     assert seen == [2500] and metrics["sail/actor_lr"] == 1.0 and "actor/saturation" in metrics
     block.alpha_scheduler.alpha = 1.0  # a teacher-only batch
     assert "actor/saturation" not in block(3500, 4000, None)
+
+
+def test_td3_block_draws_each_prioritized_batch_after_the_step_before_set_its_priorities():
+    teacher = TensorDictReplayBuffer(storage=LazyTensorStorage(2))
+    teacher.extend(TensorDict({"next": {"reward": torch.ones(2, 1)}}, [2]))
+    replay = TensorDictReplayBuffer(storage=LazyTensorStorage(8))
+    batches = PrioritizedMixedReplayBuffer(teacher, replay, alpha=1.0, eps=1e-9, keys=[("next", "reward")])
+    replay.extend(TensorDict({"next": {"reward": torch.zeros(2, 1)}}, [2]))
+
+    def update(batch, update_actor):  # DDPGfD's delta^2: large on teacher rows, 0 on the agent's
+        batch["td_error"] = batch["is_teacher"].float() * 100
+        return {}
+
+    prioritized = loop.PrioritizedUpdate(
+        update, batches, SimpleNamespace(tensor_keys=SimpleNamespace(priority="td_error")), action_grad_coef=0.0
+    )
+    block = loop.TD3Block(
+        batches,
+        prioritized,
+        batch_size=64,
+        cadence=loop.FrameCadence(every_frames=1000, steps=3, start=2000),
+        alpha_scheduler=SimpleNamespace(alpha=0.5),
+        policy_delay=2,
+        actor_updates_after=0,
+        reward_tag="sail/d_reward_mean",
+    )
+    torch.manual_seed(0)
+    metrics = block(2500, 3000, None)  # 3 steps of 64 rows
+    # the first batch drew all 4 rows at priority 1 (each is missed with probability 0.75 ** 64);
+    # after it, only the teacher rows have mass
+    first = metrics["sail/teacher_share"].item() * 3 - 2
+    assert 0.25 < first < 0.75 and metrics["sail/d_reward_mean"].item() == pytest.approx((first + 2) / 3)
+    assert torch.allclose(batches.probabilities(), torch.tensor([0.5, 0.5, 0.0, 0.0], dtype=torch.float64))
+
+
+def test_prioritized_update_adds_the_first_critics_action_gradient():
+    # a linear critic Q_i(s, a) = W_i [a, s] + b_i: grad_a Q_1 = W_1[:, :ACT] on every row
+    spec = Bounded(-1.0, 1.0, (2,))
+    actor = TensorDictSequential(
+        TensorDictModule(MLP(in_features=3, out_features=2, num_cells=[8]), ["observation"], ["param"]),
+        TanhModule(["param"], ["action"], spec=spec),
+    )
+    critic = ValueOperator(MLP(in_features=5, out_features=1, num_cells=[]), in_keys=["action", "observation"])
+    loss = SAILLoss(actor, critic, action_spec=spec)
+    batch = TensorDict({"observation": torch.randn(6, 3), "action": spec.rand((6,))}, [6])
+    weight = loss.qvalue_network_params[0]["module", "0", "weight"]
+    expected = weight[0, :2].pow(2).sum().detach().expand(6)
+    gradient = loop.PrioritizedUpdate(None, None, loss, action_grad_coef=1.0).action_gradient(batch)
+    torch.testing.assert_close(gradient, expected)
+    assert "td_error" not in batch.keys() and not batch["action"].requires_grad  # the batch is left as it was
 
 
 class DLoss:

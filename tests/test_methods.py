@@ -51,9 +51,14 @@ def test_td3_baselines_run(tmp_path, teacher_dir, algo):
     assert summary["gradient_steps"] == 100 and summary["num_promoted"] == 0  # nothing beats C this early
     alphas = {value for _, value in read_scalar(run_dir, "alpha")}
     trains_d = (run_dir / "logs" / "scalars" / "d").exists()
-    if algo == "ddpgfd":  # demonstrations in half of every batch, env reward, no D, + the n-step loss
-        assert alphas == {0.5} and not trains_d and read_scalar(run_dir, "sail/env_reward_mean")
+    if algo == "ddpgfd":  # prioritized demonstrations, env reward, no D, + the n-step loss
+        assert not trains_d and read_scalar(run_dir, "sail/env_reward_mean")
         assert read_scalar(run_dir, "sail/loss_qvalue_nstep")
+        shares = [share for _, share in read_scalar(run_dir, "sail/teacher_share")]
+        assert shares and all(0 < share < 1 for share in shares)  # the priorities' share, not a fixed half
+        # one priority per demonstration row (425) and stored agent row, set by the steps
+        leaves = saved(run_dir, "replay_priorities")["replay_priorities"]["leaves"]
+        assert leaves.shape == (425 + 2000 - 10,) and leaves.unique().numel() > 100
         assert saved(run_dir, "optim_critic")["optim_critic"]["param_groups"][0]["weight_decay"] == 1e-5
     elif algo == "td3_delayed":
         assert alphas == {0.0} and not trains_d and read_scalar(run_dir, "sail/env_reward_mean")

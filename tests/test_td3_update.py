@@ -181,6 +181,50 @@ class TestTD3Update:
         spec = Bounded(torch.tensor([-2.0, 0.0]), torch.tensor([0.5, 3.0]), (ACT,))
         assert_same(run_both(spec, loss_kwargs={"activation": nn.Tanh, "num_cells": (16,)}))
 
+    @pytest.mark.parametrize("implementation", ["loss", "fused"])
+    def test_td_error_is_the_squared_one_step_error_max_over_the_critics(self, implementation):
+        # DDPGfD's priorities start from it; policy_noise=0 makes the target a plain forward pass
+        torch.manual_seed(0)
+        loss = make_loss(UNIT, policy_noise=0.0)
+        update = make_update(loss, implementation, td_error=True)
+        batch = make_batch(UNIT, seed=3)
+        with torch.no_grad():
+            with loss.target_actor_network_params.to_module(loss.actor_network):
+                next_action = loss.actor_network(batch["next"].clone())["action"]
+
+            def q(params, obs, action):
+                with params.to_module(loss.qvalue_network):
+                    td = TensorDict({"observation": obs, "action": action}, [B])
+                    return loss.qvalue_network(td)["state_action_value"].squeeze(-1)
+
+            next_q = (
+                torch.stack(
+                    [
+                        q(loss.target_qvalue_network_params[i], batch["next", "observation"], next_action)
+                        for i in range(2)
+                    ]
+                )
+                .min(0)
+                .values
+            )
+            target = batch["next", "reward"].squeeze(-1) + 0.9 * (~batch["next", "terminated"]).squeeze(-1) * next_q
+            expected = (
+                torch.stack(
+                    [
+                        (q(loss.qvalue_network_params[i], batch["observation"], batch["action"]) - target) ** 2
+                        for i in (0, 1)
+                    ]
+                )
+                .max(0)
+                .values
+            )
+        update(batch, update_actor=False)
+        torch.testing.assert_close(batch["td_error"], expected, rtol=1e-5, atol=1e-6)
+
+    def test_td_error_is_refused_with_cudagraphs(self):
+        with pytest.raises(ValueError, match="td_error=True writes into the batch"):
+            make_update(make_loss(UNIT), "fused", td_error=True, cudagraphs=True)
+
     def test_fused_equals_plain_td3loss(self):
         assert_same(run_both(UNIT, loss_kwargs={"cls": TD3Loss}))
 

@@ -18,6 +18,7 @@ from torchrl_sail.data.paper_teachers import (
     missing_paper_teachers,
     paper_teachers_dir,
 )
+from torchrl_sail.data.prioritized_mixed_buffer import PrioritizedMixedReplayBuffer
 from torchrl_sail.data.teacher_buffer import (
     FIFOTrajectoryWriter,
     TeacherReplayBuffer,
@@ -31,6 +32,7 @@ __all__ = [
     "Demonstrations",
     "FIFOTrajectoryWriter",
     "MixedReplayBuffer",
+    "PrioritizedMixedReplayBuffer",
     "TRANSITION_KEYS",
     "TeacherReplayBuffer",
     "TopKTeacherReplayBuffer",

@@ -200,6 +200,11 @@ class TD3Update:
             DDPGfD's n-step TD loss to the critic loss. Defaults to ``None`` (1-step only).
         nstep_weight (float, optional): DDPGfD's ``lambda_1``, the weight of the n-step
             loss (``> 0``). Defaults to ``1.0``.
+        td_error (bool, optional): write each row's squared 1-step TD error, the max over the
+            critics, into the batch under ``loss.tensor_keys.priority``, as ``TD3Loss.forward``
+            does for prioritized replay (e.g. a
+            :class:`~torchrl_sail.PrioritizedMixedReplayBuffer`'s new priorities). Not with
+            ``cudagraphs``. Defaults to ``False``.
         actor_max_grad_norm (float, optional): clip the actor's gradients to this global
             norm before its step (``torch.nn.utils.clip_grad_norm_``, no host sync), as
             Kostrikov et al.'s DAC does at 40. Defaults to ``None`` (no clipping).
@@ -270,6 +275,7 @@ class TD3Update:
         precision: Literal["fp32", "bf16"] = "fp32",
         nstep_key: NestedKey | None = None,
         nstep_weight: float = 1.0,
+        td_error: bool = False,
         actor_max_grad_norm: float | None = None,
         cudagraphs: bool = False,
         cudagraph_warmup: int = 3,
@@ -308,6 +314,9 @@ class TD3Update:
                 UserWarning,
                 stacklevel=2,
             )
+        if td_error and cudagraphs:
+            raise ValueError("td_error=True writes into the batch, which a CUDA graph's replay does not: use one.")
+        self.td_error = td_error
         self.cudagraphs = cudagraphs
         if cudagraphs:
             _check_cudagraphs(implementation, loss, critic_optimizer, actor_optimizer, cudagraph_warmup)
@@ -546,6 +555,7 @@ class TD3Update:
                     loss_n, _ = loss.value_loss(self._nstep_view(batch))
                     loss_q = loss_q + self.nstep_weight * loss_n
             q = info["pred_value"]
+            squared_error = info["td_error"]
         else:
             action = batch[loss.tensor_keys.action]
             # drawn first, as TD3Loss.value_loss does ("for reprod"); the n-step loss's second
@@ -564,6 +574,9 @@ class TD3Update:
                 if nstep:
                     loss_n = self._td_loss(q, target_n, view)
                     loss_q = loss_q + self.nstep_weight * loss_n
+            squared_error = (q.detach() - target).pow(2) if self.td_error else None
+        if self.td_error:
+            batch.set(loss.tensor_keys.priority, squared_error.detach().max(0).values)
         loss_q.backward()
         self.critic_optimizer.step()
         self.critic_optimizer.zero_grad(set_to_none=True)

@@ -1,0 +1,144 @@
+"""Tests for PrioritizedMixedReplayBuffer (torchrl_sail/data/prioritized_mixed_buffer.py): DDPGfD's
+prioritized replay over a fixed demonstration buffer and the agent's replay together."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from tensordict import TensorDict
+from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+
+from torchrl_sail import PrioritizedMixedReplayBuffer, TopKTeacherReplayBuffer
+from torchrl_sail.data.prioritized_mixed_buffer import _PriorityTree
+
+TEACHER_MARK, AGENT_MARK = 100.0, 0.0
+
+
+def rows(n, mark):
+    """``n`` rows whose observation is ``mark + row index``."""
+    return TensorDict({"observation": mark + torch.arange(n, dtype=torch.float32).unsqueeze(-1)}, [n])
+
+
+def make(n_teacher=2, n_agent=3, capacity=8, **kwargs):
+    teacher = TensorDictReplayBuffer(storage=LazyTensorStorage(n_teacher + 4))
+    if n_teacher:
+        teacher.extend(rows(n_teacher, TEACHER_MARK))
+    agent = TensorDictReplayBuffer(storage=LazyTensorStorage(capacity))
+    kwargs.setdefault("keys", ["observation"])
+    rb = PrioritizedMixedReplayBuffer(teacher, agent, **kwargs)
+    if n_agent:
+        agent.extend(rows(n_agent, AGENT_MARK))
+    return rb, teacher, agent
+
+
+@pytest.mark.parametrize("size", [1, 2, 5, 8, 13])
+def test_tree_sums_mins_and_finds_like_prefix_sums(size):
+    rng = np.random.default_rng(size)
+    tree = _PriorityTree(size)
+    values = rng.uniform(0.1, 2.0, size)
+    values[rng.uniform(size=size) < 0.3] = 0.0  # rows without mass are never found
+    tree.set(np.arange(size), values)
+    assert tree.total == pytest.approx(values.sum())
+    assert tree.minimum == pytest.approx(values.min())
+    prefix = np.cumsum(values)
+    for i in np.flatnonzero(values):
+        start = prefix[i] - values[i]
+        # the interval [S_{i-1}, S_i) (its ends up to the rounding of the tree's partial sums)
+        masses = np.array([start + 1e-9, start + values[i] / 2, prefix[i] - 1e-9])
+        assert tree.find(masses).tolist() == [i, i, i]
+    # a partial update changes the roots as recomputing them would
+    values[size // 2] = 7.0
+    tree.set(np.array([size // 2]), np.array([7.0]))
+    assert (tree.total, tree.minimum) == (pytest.approx(values.sum()), pytest.approx(values.min()))
+
+
+def test_probabilities_weights_and_tags_follow_the_priorities():
+    rb, _, _ = make(alpha=0.5, beta=0.7, eps=1e-3, teacher_eps=0.5)
+    # positions 0-1: the teacher's 2 rows; 2-4: the agent's storage rows 0-2
+    p = torch.tensor([1.0, 4.0, 0.0, 9.0, 2.0])
+    rb.update_priority(torch.arange(5), p)
+    v = (p.double() + 1e-3 + torch.tensor([0.5, 0.5, 0, 0, 0])) ** 0.5
+    assert torch.allclose(rb.probabilities(), v / v.sum())
+
+    torch.manual_seed(0)
+    batch = rb.sample(50_000)
+    position = batch["index"]
+    frequencies = torch.bincount(position, minlength=5).double() / 50_000
+    assert torch.allclose(frequencies, v / v.sum(), atol=4 * (0.25 / 50_000) ** 0.5)
+    # teacher rows first, tagged, and holding the teacher's data
+    n_teacher = int((position < 2).sum())
+    assert batch["is_teacher"][:n_teacher].all() and not batch["is_teacher"][n_teacher:].any()
+    assert (batch["observation"][:n_teacher, 0] == TEACHER_MARK + position[:n_teacher]).all()
+    assert (batch["observation"][n_teacher:, 0] == AGENT_MARK + position[n_teacher:] - 2).all()
+    # w_i = (N P_i)^-beta / max_k (N P_k)^-beta = (v_i / v_min)^-beta
+    expected = ((v / v.min()) ** -0.7).float()
+    assert torch.allclose(batch["priority_weight"], expected[position])
+
+
+def test_rows_enter_at_the_largest_priority_so_far_and_ring_overwrites_reenter():
+    rb, _, agent = make(n_teacher=1, n_agent=2, capacity=4, alpha=1.0, eps=1e-6)
+    leaves = rb.state_dict()["leaves"]
+    assert torch.allclose(leaves, torch.full((3,), 1.0 + 1e-6, dtype=torch.float64))  # 1 before any priority
+    rb.update_priority(torch.tensor([1, 2]), torch.tensor([5.0, 0.5]))
+    agent.extend(rows(3, AGENT_MARK))  # storage rows 2, 3, then 0 again (the ring)
+    leaves = rb.state_dict()["leaves"]
+    assert torch.allclose(leaves, torch.tensor([1.0, 5.0, 0.5, 5.0, 5.0], dtype=torch.float64) + 1e-6)
+    # position 1 (agent row 0) was overwritten: it re-entered at the max, 5
+
+
+def test_teacher_bonus_repeated_positions_and_scalar_priorities():
+    rb, _, _ = make(alpha=1.0, eps=1e-6, teacher_eps=2.0)
+    rb.update_priority(torch.tensor([0, 3, 0]), torch.tensor([7.0, 1.0, 3.0]))  # position 0 twice: last kept
+    rb.update_priority(torch.tensor([1, 4]), 0.25)
+    leaves = rb.state_dict()["leaves"]
+    assert torch.allclose(leaves, torch.tensor([3 + 2.0, 0.25 + 2.0, 1.0, 1.0, 0.25], dtype=torch.float64) + 1e-6)
+    assert rb.max_priority == 7.0  # the largest given, even if overwritten
+
+
+def test_update_tensordict_priority_reads_the_index_and_priority_keys():
+    rb, _, _ = make(alpha=1.0, eps=1e-6)
+    batch = rb.sample(4)
+    batch["td_error"] = torch.full((4,), 3.0)
+    rb.update_tensordict_priority(batch)
+    leaves = rb.state_dict()["leaves"]
+    assert torch.allclose(leaves[batch["index"]], torch.full((4,), 3.0 + 1e-6, dtype=torch.float64))
+
+
+def test_state_dict_round_trip_and_size_check():
+    rb, teacher, agent = make(alpha=0.6)
+    rb.update_priority(torch.arange(5), torch.tensor([0.1, 0.2, 0.3, 0.4, 0.5]))
+    state = rb.state_dict()
+    fresh = PrioritizedMixedReplayBuffer(teacher, agent, alpha=0.6, keys=["observation"])
+    assert not torch.equal(fresh.state_dict()["leaves"], state["leaves"])
+    fresh.load_state_dict(state)
+    assert torch.equal(fresh.state_dict()["leaves"], state["leaves"]) and fresh.max_priority == rb.max_priority
+    agent.extend(rows(1, AGENT_MARK))
+    with pytest.raises(ValueError, match="5 saved priorities for the 6 rows"):
+        fresh.load_state_dict(state)
+
+
+def test_a_teacher_buffer_reads_its_stored_rows():
+    teacher = TopKTeacherReplayBuffer(k=2, max_trajectory_length=10, keys=["observation"])
+    episode = rows(4, TEACHER_MARK)
+    done = torch.zeros(4, 1, dtype=torch.bool)
+    done[-1] = True
+    episode.set(("next", "done"), done)
+    episode.set(("next", "reward"), torch.zeros(4, 1))
+    teacher.add_demonstrations(episode)
+    agent = TensorDictReplayBuffer(storage=LazyTensorStorage(8))
+    rb = PrioritizedMixedReplayBuffer(teacher, agent, keys=["observation"])
+    assert len(rb) == 4 and rb.sample(16)["observation"].unique().tolist() == [100.0, 101.0, 102.0, 103.0]
+
+
+def test_bad_input_is_refused_with_the_reason():
+    with pytest.raises(ValueError, match="eps must be a finite number > 0"):
+        make(eps=0.0)
+    with pytest.raises(ValueError, match="alpha must be a finite number >= 0, got -1"):
+        make(alpha=-1)
+    with pytest.raises(ValueError, match="the teacher buffer is empty"):
+        make(n_teacher=0)
+    rb, teacher, _ = make()
+    teacher.extend(rows(1, TEACHER_MARK))
+    with pytest.raises(RuntimeError, match="teacher buffer changed size \\(2 rows at construction, 3 now\\)"):
+        rb.sample(4)
