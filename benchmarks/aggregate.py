@@ -57,7 +57,9 @@ Generated blocks. ``--write-into FILE:BLOCK`` also writes the block ``BLOCK`` (a
 README's results section for the runs of one teacher (``--teacher``, default ``paper``) in the
 paper's Table 1 format (methods by env, the headline mean ± std over seeds, the teacher's return and
 the paper's SAIL beside them), with ``results_<teacher>.png`` (one panel per env), the budget, the
-CPUs, the wall time and the command of every cell. ``--update-docs`` writes every block of
+CPUs, the wall time and the command of every cell; ``paper-comparison``, the paper's comparison in its
+layout (Table 1's SAIL and exploration variants beside the paper's figures, Figure 2's baselines,
+Figures 3-4's variants of SAIL), each cell the last-5 and the best-policy means. ``--update-docs`` writes every block of
 :data:`DOCUMENTS` (the README, ``docs/results.md`` and the studies' READMEs) and every file of
 :func:`generated_files` from the runs committed under ``benchmarks/results/``; ``--check`` writes
 nothing and names each block or file that differs from what they would be (exit status 1).
@@ -132,6 +134,29 @@ PAPER_SAIL = {
     "Walker2d": (5868.5, 108.8),
 }
 PAPER_ENVS = tuple(PAPER_SAIL)  # Table 1's column order
+# Table 1's other rows: its two exploration variants (1M frames, 5 seeds) and the teachers' returns
+PAPER_TABLE1 = {
+    "sail": PAPER_SAIL,
+    "sail_rnd": {
+        "HalfCheetah": (9043.1, 166.0),
+        "Swimmer": (30.9, 6.5),
+        "Hopper": (3075.5, 15.6),
+        "Walker2d": (5361.8, 58.2),
+    },
+    "sail_sac": {
+        "HalfCheetah": (8839.3, 280.5),
+        "Swimmer": (65.0, 7.7),
+        "Hopper": (3079.3, 53.3),
+        "Walker2d": (2792.8, 830.2),
+    },
+}
+PAPER_TEACHER_RETURNS = {"HalfCheetah": 5646.71, "Swimmer": 121.16, "Hopper": 1480.69, "Walker2d": 1675.01}
+# The rows of the paper's comparison, by table: Table 1 (its names), Figure 2's baselines, Figures 3-4's
+# variants of SAIL (on-policy D, without LfD, without teacher adaptation), which the paper shows as
+# curves only
+TABLE1_ROWS = {"sail": "SAIL", "sail_rnd": "Curiosity Exploration", "sail_sac": "Entropy Exploration"}
+FIGURE2_ROWS = ("sail", "dac", "gail", "pofd", "ddpgfd", "bc")
+FIGURE34_ROWS = ("sail", "sail_onpolicy", "sail_no_lfd", "sail_no_adapt")
 HEADLINE_EVALS = 5  # the headline figure of a run: the mean of its last 5 evaluations
 HEADLINE = f"last{HEADLINE_EVALS}"  # its CSV column prefix
 SPEC_EVAL_EPISODES = 10  # episodes per evaluation the reporting spec asks for
@@ -1496,6 +1521,77 @@ def block_random_policy(source: Source, target: Path) -> str:
     )
 
 
+def comparison_cell(group: Group | None) -> str:
+    """A cell of the paper's comparison: the last-5 mean ± std over seeds, then the best policy's."""
+    if group is None:
+        return "-"
+    best = best_policy_cell(group.stats())
+    return readme_cell(group) + ("" if best == "-" else f"; best policy {best}")
+
+
+def comparison_rows(groups: dict, teacher: str, methods, names: dict, envs: list[str]) -> list[str]:
+    """One row per method and budget with runs of ``teacher`` (the largest budget first: Table 1's
+    1M), then, for a method of Table 1, the paper's row."""
+    lines = []
+    for method in methods:
+        budgets = {}  # label -> one of its groups
+        for (_, t, label), group in groups.items():
+            if t == teacher and method_name(label) == method:
+                budgets.setdefault(label, group)
+        for label in reversed(sort_methods(budgets)):
+            budget = frames_label(total_frames(budgets[label].runs[0]))
+            cells = [comparison_cell(groups.get((env, teacher, label))) for env in envs]
+            name = f"{names[method]} (`{method}`)" if method in names else f"`{method}`"
+            lines.append(f"| {name}, {budget} frames | " + " | ".join(cells) + " |")
+        if method in PAPER_TABLE1:
+            paper = [PAPER_TABLE1[method].get(paper_env(env)) for env in envs]
+            cells = ["-" if value is None else f"{value[0]} ± {value[1]}" for value in paper]
+            lines.append(f"| {names.get(method, method)} in the paper, 1M frames | " + " | ".join(cells) + " |")
+    return lines
+
+
+def envs_with(groups: dict, teacher: str, methods, envs: list[str]) -> list[str]:
+    """The envs of ``envs`` where one of ``methods`` has runs of ``teacher``."""
+    return [env for env in envs if any((e, t) == (env, teacher) and method_name(m) in methods for e, t, m in groups)]
+
+
+def table_header(envs: list[str]) -> list[str]:
+    return ["| | " + " | ".join(paper_env(env) for env in envs) + " |", "|---" * (len(envs) + 1) + "|"]
+
+
+def block_paper_comparison(source: Source, target: Path) -> str:
+    """The paper's comparison laid out as the paper does: Table 1 (SAIL and its two exploration
+    variants, beside the paper's figures), Figure 2's baselines and Figures 3-4's variants of SAIL
+    (curves only in the paper), each cell the last-5 mean ± std over seeds and the best policy's."""
+    groups, teacher = source.groups, source.teacher
+    envs = envs_with(groups, teacher, TABLE1_ROWS, readme_envs(groups, teacher))
+    if not envs:
+        raise ValueError(f"no finished run of SAIL or its variants with teacher {teacher!r} for {target}")
+    teachers = [pair_groups(groups, env, teacher)[0].teacher_return for env in envs]
+    sections = [
+        f"**Table 1.** Per cell, the mean ± std over seeds of each run's last {HEADLINE_EVALS} evaluations, "
+        "then of its best policy (the SAIL authors' rule); the paper's rows as it prints them (5 seeds, -v2 envs).",
+        "",
+        *table_header(envs),
+        *comparison_rows(groups, teacher, TABLE1_ROWS, TABLE1_ROWS, envs),
+        "| teacher | " + " | ".join(fmt(value) for value in teachers) + " |",
+        "| teacher in the paper | "
+        + " | ".join(fmt(PAPER_TEACHER_RETURNS.get(paper_env(env)), 2) for env in envs)
+        + " |",
+    ]
+    for title, methods in (
+        ("**Figure 2's methods** (the paper: curves only).", FIGURE2_ROWS),
+        ("**Figures 3 and 4's variants of SAIL** (the paper: curves only).", FIGURE34_ROWS),
+    ):
+        shown = envs_with(groups, teacher, methods[1:], readme_envs(groups, teacher))  # where more than SAIL ran
+        if shown:
+            rows_ = [
+                line for line in comparison_rows(groups, teacher, methods, {}, shown) if "in the paper" not in line
+            ]
+            sections += ["", title, "", *table_header(shown), *rows_]
+    return "\n".join(sections)
+
+
 @dataclass(frozen=True)
 class Block:
     """A generated block: ``render(source, target)`` makes its Markdown for the file ``target``;
@@ -1516,6 +1612,7 @@ BLOCKS = {
     "trusted-rule": Block(block_trusted_rule),
     "hopper-falls": Block(block_falls),
     "random-policy": Block(block_random_policy),
+    "paper-comparison": Block(block_paper_comparison),
 }
 
 #: The generated blocks of the repository's Markdown files: file -> {block: the folder it is made from}

@@ -809,3 +809,45 @@ def test_best_policy_mean_and_std_over_the_seeds_that_evaluated_it(tmp_path):
     details = text.split("## Runs\n\n")[1]
     assert details.count("- best policy (kept at 2000 frames, training-return mean 280): eval ") == 3
     assert "eval 500 over 50 episodes" in details
+
+
+def test_paper_comparison_lays_out_table1_figure2_and_figures34(tmp_path):
+    """SAIL at two budgets and its variants beside the paper's Table 1 rows; the baselines and the
+    ablations in their own tables, on the envs where they ran."""
+    root = tmp_path / "comparison"
+    for env, method, seed, frames, value in (
+        ("Hopper-v4", "sail", 0, 1_000_000, 3000.0),
+        ("Hopper-v4", "sail", 1, 1_000_000, 3400.0),
+        ("Hopper-v4", "sail", 0, 300_000, 2000.0),
+        ("Swimmer-v4", "sail", 0, 1_000_000, 300.0),
+        ("Hopper-v4", "sail_rnd", 0, 300_000, 1500.0),
+        ("Hopper-v4", "dac", 0, 300_000, 1000.0),
+        ("Hopper-v4", "sail_onpolicy", 0, 300_000, 900.0),
+    ):
+        write_run(
+            root / "stage" / "paper" / env / method / f"seed{seed}-{frames}",
+            env=env,
+            algo=method,
+            seed=seed,
+            evals=frames_curve([value] * 5),
+            teacher_return=1500.0 if env == "Hopper-v4" else 120.0,
+            total_frames=frames,
+            frames=frames,
+        )
+    source = aggregate.Source([root], tmp_path / "out")
+    text = aggregate.block_paper_comparison(source, tmp_path / "results.md")
+    table1, figure2, figure34 = text.split("\n\n**")[0], text.split("**Figure 2")[1], text.split("**Figures 3")[1]
+    assert "| | Swimmer | Hopper |" in table1  # Table 1's column order: HalfCheetah, Swimmer, Hopper, Walker2d
+    assert "| SAIL (`sail`), 1M frames | 300.0 (1 seed) | 3200.0 ± 282.8 (2 seeds) |" in table1
+    assert "| SAIL (`sail`), 300k frames | - | 2000.0 (1 seed) |" in table1
+    assert table1.index("1M frames |") < table1.index("300k frames |")
+    assert "| SAIL in the paper, 1M frames | 309.5 ± 3.0 | 3302.1 ± 14.2 |" in table1
+    assert "| Curiosity Exploration (`sail_rnd`), 300k frames | - | 1500.0 (1 seed) |" in table1
+    assert "| Curiosity Exploration in the paper, 1M frames | 30.9 ± 6.5 | 3075.5 ± 15.6 |" in table1
+    assert "| Entropy Exploration in the paper, 1M frames | 65.0 ± 7.7 | 3079.3 ± 53.3 |" in table1
+    assert "| teacher | 120.0 | 1500.0 |" in table1 and "| teacher in the paper | 121.16 | 1480.69 |" in table1
+    # the baselines and ablations where they ran (Hopper only), SAIL beside them, no paper rows
+    assert "| | Hopper |\n" in figure2 and "| `dac`, 300k frames | 1000.0 (1 seed) |" in figure2
+    assert "| `sail`, 1M frames | 3200.0 ± 282.8 (2 seeds) |" in figure2 and "paper," not in figure2
+    assert "| `sail_onpolicy`, 300k frames | 900.0 (1 seed) |" in figure34
+    assert "gail" not in text  # no run, no row
