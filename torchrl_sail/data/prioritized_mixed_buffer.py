@@ -41,11 +41,11 @@ class _PriorityTree:
     def set(self, position: np.ndarray, value: np.ndarray) -> None:
         node = position + self.width
         self.sum[node], self.min[node] = value, value
-        node = np.unique(node // 2)
-        while node[0] >= 1:  # every level from the leaves' parents to the root
+        for _ in range(self.width.bit_length() - 1):  # every level from the leaves' parents to the root
+            # a parent listed twice gets the same value twice: no need to deduplicate
+            node //= 2
             self.sum[node] = self.sum[2 * node] + self.sum[2 * node + 1]
             self.min[node] = np.minimum(self.min[2 * node], self.min[2 * node + 1])
-            node = np.unique(node // 2)
 
     def leaves(self, position: np.ndarray) -> np.ndarray:
         return self.sum[position + self.width]
