@@ -96,7 +96,8 @@ TRUSTED_ORDER = (
 # The paper's whole comparison with its teachers, seeds 0-2 (its own scale): Table 1's exploration
 # variants (Curiosity, Entropy) and Figure 2's baselines on the four envs, Figure 3's on-policy D and
 # Figure 4's ablations on Hopper and HalfCheetah, at 300k frames; SAIL at Table 1's 1M frames.
-COMPARISON_METHODS = ("sail_rnd", "sail_sac", "gail", "pofd", "ddpgfd")
+# dac_published: not the paper's, but the published table's row, rerun on the release's loop
+COMPARISON_METHODS = ("sail_rnd", "sail_sac", "gail", "pofd", "ddpgfd", "dac_published")
 ABLATIONS = ("sail_onpolicy", "sail_no_lfd", "sail_no_adapt")
 ABLATION_ENVS = ("Hopper-v4", "HalfCheetah-v4")
 COMPARISON_SEEDS = (0, 1, 2)

@@ -431,7 +431,7 @@ def test_comparison_stages_run_every_row_of_the_papers_comparison_on_three_seeds
     cells = campaign.plan()
     comparison = [c for c in cells if c.stage == "comparison"]
     counts = Counter((c.method, c.env) for c in comparison)
-    for method in ("sail_rnd", "sail_sac", "gail", "pofd", "ddpgfd"):
+    for method in ("sail_rnd", "sail_sac", "gail", "pofd", "ddpgfd", "dac_published"):
         assert all(counts[method, env] == 3 for env in ENVS)
     for method in ("sail_onpolicy", "sail_no_lfd", "sail_no_adapt"):
         assert {env: counts[method, env] for env in ENVS} == {
@@ -440,7 +440,7 @@ def test_comparison_stages_run_every_row_of_the_papers_comparison_on_three_seeds
             "Walker2d-v4": 0,
             "Swimmer-v4": 0,
         }
-    assert len(comparison) == 78 and {c.frames for c in comparison} == {300_000}
+    assert len(comparison) == 90 and {c.frames for c in comparison} == {300_000}
     assert [c.seed for c in comparison] == sorted(c.seed for c in comparison)
     assert all(c.teacher == "paper" and not c.overrides for c in comparison)
     table1 = [(c.env, c.method, c.seed, c.frames) for c in cells if c.stage == "table1"]
