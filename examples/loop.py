@@ -213,7 +213,7 @@ class PrioritizedUpdate:
         loss = self.loss
         critic, action_key = loss.qvalue_network, loss.tensor_keys.action
         action = batch[action_key].detach().requires_grad_(True)
-        inputs = batch.select(*critic.in_keys).copy().set(action_key, action)
+        inputs = batch.select(*critic.in_keys).set(action_key, action)  # a new tensordict: batch keeps its action
         with torch.enable_grad(), loss.qvalue_network_params[0].to_module(critic):
             q = critic(inputs)[loss.tensor_keys.state_action_value]
             (grad,) = torch.autograd.grad(q.sum(), action)
