@@ -19,11 +19,16 @@ teachers stage's), ``--stages preact`` SAIL with the actor's pre-tanh penalty
 paper's teachers, ``--stages centred`` SAIL with its reward centred at D = 1/2
 (``algo.reward.shift=-log 2``; teacher labels ``<teacher>-centred``), and ``--stages logit`` SAIL with
 D's logit (``algo.reward.kind=airl``; ``<teacher>-logit``) on Swimmer and HalfCheetah, none a default.
+``--stages trusted`` is the trusted-default confirmation; after it, with the default it decides,
+``ant`` runs SAIL and DAC on Ant-v4 with the authors' Ant teacher as recorded (label ``paper``)
+and on the columns Ant-v4 reproduces (``paper-nocontact``), ``comparison`` the paper's other rows
+and ``table1`` SAIL at 1M frames (seeds 0-2 each), none a default.
 ``--envs`` and ``--seeds`` keep only those cells of the stages (``--stages weak preact --seeds 0``
 pairs each "before" seed with its "after" sooner). ``--jobs`` runs go at once; rerunning the same
 command after an interruption continues where it stopped.
 ``--teachers-dir`` holds the SAIL authors' teacher files
-(``expert_data_no_img_<Env>_scores_<score>_episodes_1.npz``).
+(``expert_data_no_img_<Env>_scores_<score>_episodes_1.npz``; ``python -m torchrl_sail.data.download``
+fetches them, Ant's included).
 
 ``--collect DEST`` copies what the report needs of every finished run under ``--out`` to the
 same place under ``DEST`` (``aggregate.py DEST`` reads it): ``config.yaml``, ``summary.json``,
@@ -64,6 +69,12 @@ PAPER_TEACHERS = {
     "Swimmer-v4": "expert_data_no_img_Swimmer_scores_120_episodes_1.npz",
 }
 ENVS = list(PAPER_TEACHERS)
+# The teachers the authors published beside the paper's, for the envs of the ant stage: Ant-v2's 111
+# columns, whose 84 contact-force columns (27-110) mujoco-py 2.x recorded as 0.0 where Ant-v4 fills them
+OTHER_TEACHERS = {"Ant-v4": "expert_data_no_img_Ant_scores_1200_episodes_1.npz"}
+TEACHER_FILES = {**PAPER_TEACHERS, **OTHER_TEACHERS}
+# The Ant teacher on the 27 columns Ant-v4 reproduces, and the time feature (label "paper-nocontact")
+ANT_OWN_COLUMNS = ("env.kwargs.use_contact_forces=false", "teacher.drop_columns=27-110")
 # The weak-teacher study's teachers (make_teacher.py; benchmarks/README.md has how each was made),
 # folders under --weak-teachers-dir, one per env, each its own label. The third, Hopper's near-random
 # teacher, is --random-teacher (label "random", as in the teachers stage).
@@ -249,6 +260,16 @@ def plan() -> list[Cell]:
         ]
         if seed >= 3:
             cells += [Cell("trusted", env, method, seed, 300_000) for env in ENVS for method in ("sail", "dac")]
+    # Beyond the paper's four envs, after the trusted default is decided (its SAIL rows use the default
+    # of the commit they run from): SAIL and DAC on Ant-v4 with the authors' teacher as recorded
+    # ("paper": 111 columns, the contact forces on) and on the columns Ant-v4 reproduces
+    # ("paper-nocontact"), seed by seed.
+    for seed in COMPARISON_SEEDS:
+        cells += [
+            Cell("ant", "Ant-v4", method, seed, 300_000, teacher, overrides)
+            for teacher, overrides in (("paper", ()), ("paper-nocontact", ANT_OWN_COLUMNS))
+            for method in ("sail", "dac")
+        ]
     # The paper's comparison, after the trusted default is decided (its SAIL rows use the default of
     # the commit they run from): the 300k rows seed by seed, then Table 1 at 1M.
     for seed in COMPARISON_SEEDS:
@@ -269,7 +290,7 @@ def teacher_path(
 ) -> Path | None:
     label = base_label(cell)
     if label.startswith("paper"):
-        return teachers_dir / PAPER_TEACHERS[cell.env]
+        return teachers_dir / TEACHER_FILES[cell.env]
     if label == "random":
         return random_teacher
     if cell.stage in WEAK_STAGES:
@@ -395,16 +416,22 @@ def main(argv: list[str] | None = None) -> int:
             "centred",
             "logit",
             "trusted",
+            "ant",
             "comparison",
             "table1",
         ],
         help=f"the stages to run (default: {' '.join(DEFAULT_STAGES)}) or, with --collect, to copy (default: "
         "all); weak (SAIL with weak teachers), precision (fp32 against bf16: it needs bf16 hardware), preact "
         "(SAIL with the actor's pre-tanh penalty), centred (SAIL with its reward centred at D = 1/2) and logit "
-        "(SAIL with D's logit) and trusted (the trusted-default confirmation) are never defaults",
+        "(SAIL with D's logit), trusted (the trusted-default confirmation), ant (SAIL and DAC on Ant-v4), "
+        "comparison (the paper's other rows) and table1 (SAIL at 1M) are never defaults",
     )
     parser.add_argument(
-        "--envs", nargs="+", choices=ENVS, metavar="ENV", help=f"only these envs' cells ({', '.join(ENVS)})"
+        "--envs",
+        nargs="+",
+        choices=list(TEACHER_FILES),
+        metavar="ENV",
+        help=f"only these envs' cells ({', '.join(TEACHER_FILES)})",
     )
     parser.add_argument("--seeds", nargs="+", type=int, metavar="SEED", help="only these seeds' cells")
     parser.add_argument(
@@ -437,7 +464,8 @@ def main(argv: list[str] | None = None) -> int:
     if any(c.teacher.startswith("paper") for c in cells):  # --stages weak alone needs no paper teacher
         if args.teachers_dir is None:
             parser.error(f"--teachers-dir is required by --stages {' '.join(stages)}")
-        missing = [name for name in PAPER_TEACHERS.values() if not (args.teachers_dir / name).exists()]
+        needed = sorted({TEACHER_FILES[c.env] for c in cells if c.teacher.startswith("paper")})
+        missing = [name for name in needed if not (args.teachers_dir / name).exists()]
         if missing:
             parser.error(f"--teachers-dir {args.teachers_dir} lacks {', '.join(missing)}")
     teachers_dir = None if args.teachers_dir is None else args.teachers_dir.resolve()

@@ -40,8 +40,9 @@ def test_plan_fills_the_table_seed_0_first():
         "centred": 6,
         "logit": 7,
         "trusted": 8,
-        "comparison": 9,
-        "table1": 10,
+        "ant": 9,
+        "comparison": 10,
+        "table1": 11,
     }
     stages = [order[c.stage] for c in cells]
     assert stages == sorted(stages)
@@ -285,7 +286,7 @@ def test_matrix_records_every_stage_and_label(tmp_path, monkeypatch):
         campaign.subprocess, "run", lambda cmd, **kw: launched.append(cmd) or argparse.Namespace(returncode=0)
     )
     assert campaign.main(["--teachers-dir", str(teachers), "--out", str(tmp_path / "out"), "--jobs", "1"]) == 0
-    never = ("weak", "precision", "preact", "centred", "logit", "trusted", "comparison", "table1")
+    never = ("weak", "precision", "preact", "centred", "logit", "trusted", "ant", "comparison", "table1")
     default = [c for c in campaign.plan() if c.teacher != "random" and c.stage not in never]
     assert len(launched) == len(default)  # not the weak, precision and remedy stages: never defaults
     main = json.loads((tmp_path / "out" / "main" / "matrix.json").read_text())
@@ -425,6 +426,40 @@ def test_trusted_stage_confirms_the_candidate_on_eight_teachers_beside_its_compa
     assert f"teacher.path={teachers / campaign.PAPER_TEACHERS['HalfCheetah-v4']} " in lines[1]
 
 
+def test_ant_stage_runs_sail_and_dac_on_the_recorded_and_the_reproduced_columns(tmp_path, capsys):
+    """Seeds 0-2, seed by seed: SAIL and DAC with the authors' Ant teacher as recorded (111 columns) and
+    with its contact-force columns dropped on Ant-v4 without contact forces; the Ant file is checked."""
+    cells = [c for c in campaign.plan() if c.stage == "ant"]
+    assert Counter((c.method, c.teacher) for c in cells) == {
+        (method, teacher): 3 for method in ("sail", "dac") for teacher in ("paper", "paper-nocontact")
+    }
+    assert {c.env for c in cells} == {"Ant-v4"} and {c.frames for c in cells} == {300_000}
+    assert [c.seed for c in cells] == sorted(c.seed for c in cells)
+    assert {c.teacher: c.overrides for c in cells} == {
+        "paper": (),
+        "paper-nocontact": ("env.kwargs.use_contact_forces=false", "teacher.drop_columns=27-110"),
+    }
+    teachers = tmp_path / "teachers"
+    teachers.mkdir()
+    for name in campaign.PAPER_TEACHERS.values():  # the paper's four alone: the Ant file is missing
+        (teachers / name).touch()
+    args = ["--teachers-dir", str(teachers), "--out", str(tmp_path / "out"), "--stages", "ant", "--dry-run"]
+    with pytest.raises(SystemExit):
+        campaign.main(args)
+    assert "lacks expert_data_no_img_Ant_scores_1200_episodes_1.npz" in capsys.readouterr().err
+    (teachers / campaign.OTHER_TEACHERS["Ant-v4"]).touch()
+    assert campaign.main([*args, "--seeds", "0"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 4 and all(f"teacher.path={teachers / campaign.OTHER_TEACHERS['Ant-v4']} " in x for x in lines)
+    assert ["teacher.drop_columns=27-110" in line for line in lines] == [False, False, True, True]
+    run_dir = tmp_path / "out" / "ant" / "paper-nocontact" / "Ant-v4" / "dac" / "seed0"
+    assert lines[3].endswith(f"hydra.run.dir={run_dir}")
+    # the paper's teachers are not needed for Ant alone, and --envs takes Ant-v4
+    (teachers / campaign.PAPER_TEACHERS["Hopper-v4"]).unlink()
+    assert campaign.main([*args, "--envs", "Ant-v4"]) == 0
+    assert len(capsys.readouterr().out.splitlines()) == 12
+
+
 def test_comparison_stages_run_every_row_of_the_papers_comparison_on_three_seeds():
     """Table 1's variants and Figure 2's baselines on the four envs, Figures 3-4's variants on Hopper and
     HalfCheetah (300k frames, seed by seed), then SAIL at 1M frames on the four envs."""
@@ -471,5 +506,8 @@ def test_envs_and_seeds_keep_only_their_cells(tmp_path, capsys):
         campaign.main([*args, "--stages", "weak", "--seeds", "7", "--dry-run"])
     assert "--stages weak has no cell with these --envs and --seeds" in capsys.readouterr().err
     with pytest.raises(SystemExit):
-        campaign.main([*args, "--envs", "Ant-v4", "--dry-run"])
-    assert "invalid choice: 'Ant-v4'" in capsys.readouterr().err
+        campaign.main([*args, "--envs", "Ant-v4", "--dry-run"])  # no default stage runs Ant
+    assert "--stages main scale teachers buffer has no cell with these --envs" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        campaign.main([*args, "--envs", "Humanoid-v4", "--dry-run"])
+    assert "invalid choice: 'Humanoid-v4'" in capsys.readouterr().err
