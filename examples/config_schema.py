@@ -56,6 +56,8 @@ Activation = Choice("Activation", {name: name for name in ("relu", "tanh", "elu"
 DiscriminatorInit = Choice("DiscriminatorInit", {name: name for name in ("xavier", "orthogonal", "torch")})
 Cadence = Choice("Cadence", {name: name for name in ("frames", "episodes")})
 BlockOrder = Choice("BlockOrder", {name: name for name in ("td3_first", "discriminator_first")})
+# what a mean loss divides the importance-weighted sum by: the rows (PER's) or the weights' sum (TorchRL's)
+WeightNormalization = Choice("WeightNormalization", {name: name for name in ("count", "sum")})
 Backend = Choice("Backend", {name: name for name in ("direct", "process", "ray")})
 LoggerBackend = Choice("LoggerBackend", {name: name for name in ("csv", "wandb", "tensorboard")})
 WandbMode = Choice("WandbMode", {name: name for name in ("offline", "online")})
@@ -189,6 +191,10 @@ class PrioritizedReplayConfig:
     eps: float = 1.0e-6
     teacher_eps: float = 1.0  # epsilon_D: the demonstrations' priority bonus
     action_grad_coef: float = 1.0  # lambda_3
+    # count: each loss is the batch mean of the weighted per-row losses, mean_i(w_i l_i), as PER
+    # (Schaul et al. 2016) and medipixel step | sum: TorchRL's weighted mean, sum_i w_i l_i / sum_i w_i
+    # (SAILLoss's weight_normalization)
+    weight_normalization: WeightNormalization = WeightNormalization.count
 
 
 @dataclass

@@ -205,7 +205,7 @@ class PrioritizedUpdate:
         grad_term = self.action_grad_coef * self.action_gradient(batch) if self.action_grad_coef else 0.0
         metrics = self.update(batch, update_actor=update_actor)
         with timeit("priority"):
-            self.buffer.update_priority(batch["index"], batch[self.loss.tensor_keys.priority] + grad_term)
+            self.buffer.update_priority(batch[self.buffer.index_key], batch[self.loss.tensor_keys.priority] + grad_term)
         return metrics
 
     def action_gradient(self, batch) -> torch.Tensor:

@@ -549,6 +549,8 @@ def make_losses(cfg: DictConfig, actor, critic, discriminator, action_spec):
             noise_clip=o.noise_clip,
             loss_function=o.loss_function,
             preactivation_coef=o.actor_preactivation_coef,
+            # the prioritized batches' importance weights (DDPGfD), reduced as PER or TorchRL does
+            weight_normalization="sum" if cfg.algo.per is None else str(cfg.algo.per.weight_normalization),
         )
         share = loss
     loss.make_value_estimator(gamma=o.gamma)

@@ -427,6 +427,26 @@ def test_actor_preactivation_coef_reaches_the_loss():
     assert loss.preactivation_coef == 0.001 and loss.preactivation_key == "param"
 
 
+@pytest.mark.parametrize(
+    "overrides, normalization",
+    [((), "sum"), (("algo=ddpgfd",), "count"), (("algo=ddpgfd", "algo.per.weight_normalization=sum"), "sum")],
+)
+def test_the_prioritized_weights_normalization_reaches_the_loss(overrides, normalization):
+    """DDPGfD's losses reduce its importance weights as PER does (mean of w l) unless told TorchRL's way."""
+    from utils import make_agent, make_discriminator, make_losses
+
+    from torchrl_sail import make_sail_env
+
+    cfg = make(*overrides)
+    check_config(cfg)
+    env = make_sail_env("Pendulum-v1", max_episode_steps=200)
+    actor, critic, _ = make_agent(cfg, env)
+    loss = make_losses(cfg, actor, critic, make_discriminator(cfg, env), env.action_spec)[0]
+    assert loss.weight_normalization == normalization
+    with pytest.raises(Exception, match="weight_normalization"):
+        make("algo=ddpgfd", "algo.per.weight_normalization=max")
+
+
 def _td3_loss():
     from utils import make_agent, make_discriminator, make_losses
 

@@ -46,7 +46,11 @@ def test_tree_sums_mins_and_finds_like_prefix_sums(size):
         start = prefix[i] - values[i]
         # the interval [S_{i-1}, S_i) (its ends up to the rounding of the tree's partial sums)
         masses = np.array([start + 1e-9, start + values[i] / 2, prefix[i] - 1e-9])
-        assert tree.find(masses).tolist() == [i, i, i]
+        assert tree.find(masses, size).tolist() == [i, i, i]
+    # a mass within rounding of the total ends on the last set leaf, never on an unset one past it
+    partial = _PriorityTree(size + 3)
+    partial.set(np.arange(size), np.full(size, 0.1))
+    assert partial.find(np.array([partial.total, np.nextafter(partial.total, 0)]), size).tolist() == [size - 1] * 2
     # a partial update changes the roots as recomputing them would
     values[size // 2] = 7.0
     tree.set(np.array([size // 2]), np.array([7.0]))
@@ -114,21 +118,36 @@ def test_state_dict_round_trip_and_size_check():
     fresh.load_state_dict(state)
     assert torch.equal(fresh.state_dict()["leaves"], state["leaves"]) and fresh.max_priority == rb.max_priority
     agent.extend(rows(1, AGENT_MARK))
-    with pytest.raises(ValueError, match="5 saved priorities for the 6 rows"):
+    with pytest.raises(ValueError, match="cover 2 teacher and 3 agent rows, the buffers hold 2 and 4"):
         fresh.load_state_dict(state)
+    # the same count split otherwise between teacher and agent rows, or other priority settings: refused
+    other, _, _ = make(n_teacher=3, n_agent=2, alpha=0.6)
+    with pytest.raises(ValueError, match="cover 2 teacher and 3 agent rows, the buffers hold 3 and 2"):
+        other.load_state_dict(state)
+    other, _, _ = make(alpha=0.3, teacher_eps=1.0)
+    with pytest.raises(ValueError, match=r"set with alpha=0.6 \(here 0.3\), teacher_eps=0.0 \(here 1.0\)"):
+        other.load_state_dict(state)
 
 
 def test_a_teacher_buffer_reads_its_stored_rows():
+    """Two episodes in a top-K buffer fill two slots (rows 0-3 and 10-12): positions 0-6 map to them."""
     teacher = TopKTeacherReplayBuffer(k=2, max_trajectory_length=10, keys=["observation"])
-    episode = rows(4, TEACHER_MARK)
-    done = torch.zeros(4, 1, dtype=torch.bool)
-    done[-1] = True
-    episode.set(("next", "done"), done)
-    episode.set(("next", "reward"), torch.zeros(4, 1))
-    teacher.add_demonstrations(episode)
+    for length, mark in ((4, TEACHER_MARK), (3, 2 * TEACHER_MARK)):
+        episode = rows(length, mark)
+        done = torch.zeros(length, 1, dtype=torch.bool)
+        done[-1] = True
+        episode.set(("next", "done"), done)
+        episode.set(("next", "reward"), torch.zeros(length, 1))
+        teacher.add_demonstrations(episode)
     agent = TensorDictReplayBuffer(storage=LazyTensorStorage(8))
     rb = PrioritizedMixedReplayBuffer(teacher, agent, keys=["observation"])
-    assert len(rb) == 4 and rb.sample(16)["observation"].unique().tolist() == [100.0, 101.0, 102.0, 103.0]
+    assert len(rb) == 7
+    rb.update_priority(torch.arange(7), torch.tensor([0.0, 0, 0, 0, 0, 1e6, 0]))  # position 5: row 11
+    batch = rb.sample(16)
+    assert set(batch["index"].tolist()) <= set(range(7))
+    expected = torch.tensor([100.0, 101, 102, 103, 200, 201, 202])
+    assert torch.equal(batch["observation"][:, 0], expected[batch["index"]])
+    assert (batch["index"] == 5).sum() >= 12  # P(5) = 1e6 ** 0.6 / (that + 6 eps ** 0.6 + ...) ~ 1
 
 
 def test_bad_input_is_refused_with_the_reason():
@@ -142,3 +161,14 @@ def test_bad_input_is_refused_with_the_reason():
     teacher.extend(rows(1, TEACHER_MARK))
     with pytest.raises(RuntimeError, match="teacher buffer changed size \\(2 rows at construction, 3 now\\)"):
         rb.sample(4)
+    rb, _, _ = make()  # 2 teacher + 3 agent rows: positions 0-4
+    with pytest.raises(ValueError, match="batch_size must be an int >= 1, got 0"):
+        rb.sample(0)
+    before = rb.state_dict()["leaves"]
+    for position in (-1, 5):  # an internal tree node, an agent row not written yet
+        with pytest.raises(IndexError, match=f"positions must lie in \\[0, 5\\).*got \\[{position}\\]"):
+            rb.update_priority(torch.tensor([0, position]), 1.0)
+    for priority in (float("nan"), float("inf"), -0.5):
+        with pytest.raises(ValueError, match="priorities must be finite and >= 0"):
+            rb.update_priority(torch.tensor([0, 1]), torch.tensor([1.0, priority]))
+    assert torch.equal(rb.state_dict()["leaves"], before) and rb.max_priority == 1.0  # nothing written

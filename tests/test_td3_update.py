@@ -105,6 +105,30 @@ def make_batch(spec, *, seed, device="cpu", n_teacher=B // 4, steps_key=None, ns
     return batch.to(device)
 
 
+def q_value(loss, params, obs, action):
+    """One critic's Q(s, a) with ``params`` (a row per batch row)."""
+    with params.to_module(loss.qvalue_network):
+        td = TensorDict({"observation": obs, "action": action}, [obs.shape[0]])
+        return loss.qvalue_network(td)["state_action_value"].squeeze(-1)
+
+
+@torch.no_grad()
+def squared_one_step_errors(loss, batch):
+    """``(Q_i(s, a) - r - 0.9 (1 - term) min_j Q'_j(s', pi'(s')))^2`` of both critics (``[2, B]``),
+    by hand; the loss's ``policy_noise`` must be 0."""
+    with loss.target_actor_network_params.to_module(loss.actor_network):
+        next_action = loss.actor_network(batch["next"].clone())["action"]
+    next_obs = batch["next", "observation"]
+    next_q = torch.stack([q_value(loss, loss.target_qvalue_network_params[i], next_obs, next_action) for i in (0, 1)])
+    target = (
+        batch["next", "reward"].squeeze(-1) + 0.9 * (~batch["next", "terminated"]).squeeze(-1) * next_q.min(0).values
+    )
+    q = torch.stack(
+        [q_value(loss, loss.qvalue_network_params[i], batch["observation"], batch["action"]) for i in (0, 1)]
+    )
+    return (q - target) ** 2
+
+
 def recording(update):
     """Records the gradients each optimizer steps with."""
     grads = []
@@ -188,38 +212,39 @@ class TestTD3Update:
         loss = make_loss(UNIT, policy_noise=0.0)
         update = make_update(loss, implementation, td_error=True)
         batch = make_batch(UNIT, seed=3)
-        with torch.no_grad():
-            with loss.target_actor_network_params.to_module(loss.actor_network):
-                next_action = loss.actor_network(batch["next"].clone())["action"]
-
-            def q(params, obs, action):
-                with params.to_module(loss.qvalue_network):
-                    td = TensorDict({"observation": obs, "action": action}, [B])
-                    return loss.qvalue_network(td)["state_action_value"].squeeze(-1)
-
-            next_q = (
-                torch.stack(
-                    [
-                        q(loss.target_qvalue_network_params[i], batch["next", "observation"], next_action)
-                        for i in range(2)
-                    ]
-                )
-                .min(0)
-                .values
-            )
-            target = batch["next", "reward"].squeeze(-1) + 0.9 * (~batch["next", "terminated"]).squeeze(-1) * next_q
-            expected = (
-                torch.stack(
-                    [
-                        (q(loss.qvalue_network_params[i], batch["observation"], batch["action"]) - target) ** 2
-                        for i in (0, 1)
-                    ]
-                )
-                .max(0)
-                .values
-            )
+        expected = squared_one_step_errors(loss, batch).max(0).values
         update(batch, update_actor=False)
         torch.testing.assert_close(batch["td_error"], expected, rtol=1e-5, atol=1e-6)
+
+    @pytest.mark.parametrize("implementation", ["loss", "fused"])
+    @pytest.mark.parametrize("normalization", ["count", "sum"])
+    def test_importance_weights_reduce_as_per_or_as_torchrl(self, implementation, normalization):
+        # SAILLoss(weight_normalization): PER's mean_i(w_i l_i) ("count") or TorchRL's
+        # sum_i w_i l_i / sum_i w_i ("sum"), l_i the row's loss: both critics' squared errors; -Q_1(s, pi(s))
+        torch.manual_seed(0)
+        loss = make_loss(UNIT, policy_noise=0.0, weight_normalization=normalization)
+        update = make_update(loss, implementation)
+        batch = make_batch(UNIT, seed=3)
+        w = torch.linspace(0.05, 1.0, B)
+        batch["priority_weight"] = w
+
+        def reduce(row_loss):
+            return (w * row_loss).mean() if normalization == "count" else (w * row_loss).sum() / w.sum()
+
+        with torch.no_grad():
+            critic_loss = reduce(squared_one_step_errors(loss, batch).sum(0))
+            with loss.actor_network_params.to_module(loss.actor_network):
+                action = loss.actor_network(batch.select("observation").clone())["action"]
+            actor_loss = reduce(-q_value(loss, loss.qvalue_network_params[0], batch["observation"], action))
+            torch.testing.assert_close(loss.actor_loss(batch)[0], actor_loss, rtol=1e-5, atol=1e-6)
+        metrics = update(batch, update_actor=False)
+        torch.testing.assert_close(metrics["loss_qvalue"], critic_loss, rtol=1e-5, atol=1e-6)
+        # the two differ by the weights' mean: PER's steps shrink with weights below 1
+        ratio = (w.mean() if normalization == "count" else 1 / w.mean()).item()
+        other = make_loss(UNIT, policy_noise=0.0, weight_normalization={"count": "sum", "sum": "count"}[normalization])
+        other.load_state_dict(loss.state_dict())
+        with torch.no_grad():
+            torch.testing.assert_close(loss.actor_loss(batch)[0], ratio * other.actor_loss(batch)[0], rtol=1e-5, atol=0)
 
     def test_td_error_is_refused_with_cudagraphs(self):
         with pytest.raises(ValueError, match="td_error=True writes into the batch"):

@@ -67,10 +67,12 @@ TORCHRL_VERSION = "0.14.1"
 #: ``self``/``super()``: ``"module.Class": (name, ...)``.
 SUBCLASS_HOOKS = {
     # SAILLoss: adds is_teacher to the in_keys (mixing="weights"), computes the per-row weights
-    # TD3Loss reduces with, and reads the loss masks the same way TD3Loss does
+    # TD3Loss reduces with, applies them itself with weight_normalization="count", and reads the
+    # loss masks the same way TD3Loss does
     "torchrl.objectives.TD3Loss": (
         "_set_in_keys",
         "_maybe_get_priority_weight",
+        "_reduce_loss",
         "_loss_mask_keys",
         "_expand_loss_mask",
     ),

@@ -58,8 +58,9 @@ class _PriorityTree:
     def minimum(self) -> float:
         return float(self.min[1])
 
-    def find(self, mass: np.ndarray) -> np.ndarray:
-        """The leaf ``i`` whose interval ``[S_{i-1}, S_i)`` of the prefix sums holds each mass."""
+    def find(self, mass: np.ndarray, count: int) -> np.ndarray:
+        """The leaf ``i`` whose interval ``[S_{i-1}, S_i)`` of the prefix sums holds each mass, when
+        the leaves set are the first ``count``."""
         node = np.ones(mass.shape, dtype=np.int64)
         mass = mass.copy()
         while node[0] < self.width:
@@ -67,8 +68,8 @@ class _PriorityTree:
             go_right = mass >= self.sum[left]
             mass -= np.where(go_right, self.sum[left], 0.0)
             node = left + go_right
-        # a mass rounded up to the total lands past the last set leaf: take the last one with mass
-        return np.minimum(node - self.width, self.size - 1)
+        # a mass within rounding of the total can descend past the last set leaf: take that leaf
+        return np.minimum(node - self.width, count - 1)
 
 
 class PrioritizedMixedReplayBuffer:
@@ -113,7 +114,8 @@ class PrioritizedMixedReplayBuffer:
         priority_key (NestedKey): where :meth:`update_tensordict_priority` reads the new
             priorities. Defaults to ``"td_error"`` (TorchRL losses' ``tensor_keys.priority``).
         transform (Callable[[TensorDictBase], TensorDictBase], optional): applied to each batch.
-            Defaults to ``None``.
+            The two buffers' own transforms are not: their storages are read directly. Defaults to
+            ``None``.
         row_id_key (NestedKey, optional): also write the tree position there, a distinct id per
             stored row, as :class:`~torchrl_sail.MixedReplayBuffer` does. Defaults to ``None``.
 
@@ -173,7 +175,7 @@ class PrioritizedMixedReplayBuffer:
         self.num_teacher = self._teacher_rows.numel()
         self._tree = _PriorityTree(self.num_teacher + agent.storage.max_size)
         self.max_priority = 1.0
-        self.update_priority(torch.arange(self.num_teacher), self.max_priority)
+        self._set(np.arange(self.num_teacher), np.full(self.num_teacher, self.max_priority))
         self.mark_update(torch.arange(len(agent)))
         agent.storage.attach(self)
 
@@ -181,13 +183,17 @@ class PrioritizedMixedReplayBuffer:
         """Gives the agent rows just written (their storage indices) the largest priority so far."""
         index = torch.as_tensor(index).reshape(-1)
         if index.numel():
-            self.update_priority(index + self.num_teacher, self.max_priority)
+            self._set(index.cpu().numpy() + self.num_teacher, np.full(index.shape, self.max_priority))
 
     def __len__(self) -> int:
         return self.num_teacher + len(self.agent)
 
     def sample(self, batch_size: int) -> TensorDictBase:
         """Draws a ``[batch_size]`` batch, teacher rows first, with positions, tags and weights."""
+        if not (isinstance(batch_size, int) and batch_size >= 1):
+            raise ValueError(
+                f"PrioritizedMixedReplayBuffer.sample: batch_size must be an int >= 1, got {batch_size!r}."
+            )
         if len(self.teacher) != self.num_teacher:
             raise RuntimeError(
                 f"PrioritizedMixedReplayBuffer: the teacher buffer changed size ({self.num_teacher} rows at "
@@ -195,7 +201,7 @@ class PrioritizedMixedReplayBuffer:
             )
         tree = self._tree
         # torch's generator, seeded and checkpointed with the rest of the run
-        position = np.sort(tree.find(torch.rand(batch_size, dtype=torch.float64).numpy() * tree.total))
+        position = np.sort(tree.find(torch.rand(batch_size, dtype=torch.float64).numpy() * tree.total, len(self)))
         weight = torch.as_tensor((tree.leaves(position) / tree.minimum) ** -self.beta, dtype=torch.float32)
         position = torch.as_tensor(position)
         is_teacher = position < self.num_teacher
@@ -218,12 +224,28 @@ class PrioritizedMixedReplayBuffer:
         """Sets the raw priorities ``p`` of the rows at tree positions ``index`` (a number or one per row).
 
         Positions ``[0, num_teacher)`` are the teacher rows, ``num_teacher + i`` the agent's
-        storage row ``i``. With repeated positions, the last one's priority is kept.
+        storage row ``i``; the priorities are finite and ``>= 0``. With repeated positions, the
+        last one's priority is kept.
         """
         position = torch.as_tensor(index).reshape(-1).cpu().numpy()
         if not position.size:
             return
         priority = torch.as_tensor(priority, dtype=torch.float64).detach().cpu().expand(position.shape).numpy()
+        # a stray position or priority would corrupt the tree's sums for every later draw
+        if position.min() < 0 or position.max() >= len(self):
+            stray = position[(position < 0) | (position >= len(self))]
+            raise IndexError(
+                f"PrioritizedMixedReplayBuffer.update_priority: positions must lie in [0, {len(self)}) (the rows "
+                f"stored), got {stray[:4].tolist()}."
+            )
+        if not (np.isfinite(priority).all() and priority.min() >= 0):
+            raise ValueError(
+                "PrioritizedMixedReplayBuffer.update_priority: priorities must be finite and >= 0, got "
+                f"{priority[~(np.isfinite(priority) & (priority >= 0))][:4].tolist()}."
+            )
+        self._set(position, priority)
+
+    def _set(self, position: np.ndarray, priority: np.ndarray) -> None:
         self.max_priority = max(self.max_priority, float(priority.max()))
         last = position.size - 1 - np.unique(position[::-1], return_index=True)[1]
         position, priority = position[last], priority[last]
@@ -240,17 +262,34 @@ class PrioritizedMixedReplayBuffer:
         return torch.as_tensor(leaves / self._tree.total)
 
     def state_dict(self) -> dict:
-        return {"leaves": torch.as_tensor(self._tree.leaves(np.arange(len(self)))), "max_priority": self.max_priority}
+        return {
+            "leaves": torch.as_tensor(self._tree.leaves(np.arange(len(self)))),
+            "max_priority": self.max_priority,
+            "num_teacher": self.num_teacher,
+            # the leaves hold (p + eps + bonus) ** alpha: they mean the same only under the same three
+            **self._settings(),
+        }
 
     def load_state_dict(self, state: dict) -> None:
-        leaves = state["leaves"].numpy()
-        if leaves.size != len(self):
+        leaves = state["leaves"].cpu().numpy()
+        name = "PrioritizedMixedReplayBuffer.load_state_dict"
+        if state["num_teacher"] != self.num_teacher or leaves.size != len(self):
             raise ValueError(
-                f"PrioritizedMixedReplayBuffer.load_state_dict: {leaves.size} saved priorities for the "
-                f"{len(self)} rows the buffers hold (restore the buffers first)."
+                f"{name}: the saved priorities cover {state['num_teacher']} teacher and "
+                f"{leaves.size - state['num_teacher']} agent rows, the buffers hold {self.num_teacher} and "
+                f"{len(self.agent)} (restore the buffers first, with the same demonstrations)."
+            )
+        changed = {key: (state[key], value) for key, value in self._settings().items() if state[key] != value}
+        if changed:
+            raise ValueError(
+                f"{name}: the saved priorities were set with "
+                + ", ".join(f"{key}={saved} (here {now})" for key, (saved, now) in changed.items())
             )
         self.max_priority = float(state["max_priority"])
         self._tree.set(np.arange(leaves.size), leaves)
+
+    def _settings(self) -> dict:
+        return {"alpha": self.alpha, "eps": self.eps, "teacher_eps": self.teacher_eps}
 
     def __repr__(self) -> str:
         return (

@@ -80,6 +80,15 @@ class SAILLoss(TD3Loss):
             ``> 0`` needs a ``TensorDictSequential`` actor with a ``TanhModule`` that writes
             the action under another key than its input. Set at construction. Defaults to
             ``0.0`` (TD3's objective).
+        weight_normalization (str, optional): what ``reduction="mean"`` divides the weighted
+            sum ``sum_i w_i l_i`` by when the batch carries prioritized-replay weights ``w``
+            (``tensor_keys.priority_weight``): ``"sum"`` (TorchRL's losses), their sum
+            ``sum_i w_i``, a weighted mean on which scaling every weight has no effect;
+            ``"count"`` (prioritized replay as Schaul et al. 2016 and DDPGfD's public code
+            step), the number of rows, ``mean_i(w_i l_i)``, so weights normalised to at most 1
+            also shrink the step by their batch mean. Either way ``"sum"`` and ``"none"``
+            reductions are unchanged, and with ``mixing="weights"``, whose weights average 1,
+            the two agree. Defaults to ``"sum"``.
         **kwargs: the other :class:`~torchrl.objectives.TD3Loss` keyword arguments
             (``action_spec`` or ``bounds``, ``num_qvalue_nets``, ``policy_noise``,
             ``noise_clip``, ``delay_actor``, ``delay_qvalue``, ``separate_losses``,
@@ -186,8 +195,11 @@ class SAILLoss(TD3Loss):
         action_spec: TensorSpec | None = None,
         loss_function: str = "l2",
         preactivation_coef: float = 0.0,
+        weight_normalization: Literal["sum", "count"] = "sum",
         **kwargs,
     ) -> None:
+        if weight_normalization not in ("sum", "count"):
+            raise ValueError(f"weight_normalization must be 'sum' or 'count', got {weight_normalization!r}.")
         if not 0.0 <= alpha <= 1.0:
             raise ValueError(f"alpha must be in [0, 1] (the teacher share), got {alpha}.")
         if mixing not in ("batch", "weights"):
@@ -215,6 +227,7 @@ class SAILLoss(TD3Loss):
             self.preactivation_key = tanh[-1].in_keys[0]
         self.preactivation_coef = float(preactivation_coef)
         self.mixing = mixing
+        self.weight_normalization = weight_normalization
         super().__init__(
             actor_network,
             qvalue_network,
@@ -262,6 +275,20 @@ class SAILLoss(TD3Loss):
         weights = base * torch.where(teacher, teacher_share, agent_share)
         # average weight 1 instead of sum 1: same "mean", and "sum"/"none" keep TD3's scale
         return weights * (teacher | agent).sum()
+
+    def _reduce_loss(
+        self,
+        loss: torch.Tensor,
+        tensordict: TensorDictBase | None = None,
+        *,
+        mask: torch.Tensor | None = None,
+        reduction: str | None = None,
+        weights: torch.Tensor | None = None,
+    ) -> torch.Tensor:
+        if weights is not None and self.weight_normalization == "count":
+            # the weights enter the per-row terms, so "mean" divides by the (valid) rows, not by the weights' sum
+            loss, weights = loss * self._expand_loss_mask(weights, loss), None
+        return super()._reduce_loss(loss, tensordict, mask=mask, reduction=reduction, weights=weights)
 
     def actor_loss(self, tensordict: TensorDictBase) -> tuple[torch.Tensor, dict]:
         """TD3's actor loss, plus ``preactivation_coef`` times the pre-tanh penalty when it is > 0.
