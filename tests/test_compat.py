@@ -136,3 +136,14 @@ def test_native_bf16_matmul_follows_the_cpu_flags():
     else:
         assert not native
     assert _compat.native_bf16_matmul(torch.device("meta"))  # no emulation to warn about
+
+
+def test_storage_tensordict_holds_the_rows_storage_get_reads():
+    from torchrl.data import LazyTensorStorage
+
+    storage = LazyTensorStorage(6)
+    storage.set(torch.arange(4), TensorDict({"x": torch.arange(4.0)}, [4]))
+    data = _compat.storage_tensordict(storage)
+    assert data.batch_size == (6,)  # every row of the capacity
+    index = torch.tensor([3, 0, 2])
+    assert torch.equal(data[index]["x"], storage[index]["x"])

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import torch
 from tensordict import TensorDict
-from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+from torchrl.data import LazyTensorStorage, ListStorage, TensorDictReplayBuffer
 
 from torchrl_sail import PrioritizedMixedReplayBuffer, TopKTeacherReplayBuffer
 from torchrl_sail.data.prioritized_mixed_buffer import _PriorityTree
@@ -150,6 +150,28 @@ def test_a_teacher_buffer_reads_its_stored_rows():
     assert (batch["index"] == 5).sum() >= 12  # P(5) = 1e6 ** 0.6 / (that + 6 eps ** 0.6 + ...) ~ 1
 
 
+def test_draws_read_the_storages_rows_and_a_reloaded_agent_storage():
+    """The batch holds what ``storage[index]`` holds at the drawn rows, the selected keys only; after the
+    agent storage loads other rows (a resumed run), draws read those."""
+    teacher = TensorDictReplayBuffer(storage=LazyTensorStorage(4))
+    teacher.extend(rows(3, TEACHER_MARK).set("other", torch.zeros(3)))
+    agent = TensorDictReplayBuffer(storage=LazyTensorStorage(8))
+    rb = PrioritizedMixedReplayBuffer(teacher, agent, keys=["observation"])
+    agent.extend(rows(5, AGENT_MARK).set("other", torch.zeros(5)))
+    batch = rb.sample(64)
+    assert set(batch.keys()) == {"observation", "is_teacher", "index", "priority_weight"}
+    n_teacher = int(batch["is_teacher"].sum())
+    position = batch["index"]
+    expected = torch.cat([teacher.storage[position[:n_teacher]], agent.storage[position[n_teacher:] - 3]])
+    assert torch.equal(batch["observation"], expected["observation"])
+    saved = TensorDictReplayBuffer(storage=LazyTensorStorage(8))
+    saved.extend(rows(5, 50.0).set("other", torch.zeros(5)))
+    agent.storage.load_state_dict(saved.storage.state_dict())
+    batch = rb.sample(64)
+    agent_rows = ~batch["is_teacher"]
+    assert torch.equal(batch["observation"][agent_rows, 0], 50.0 + batch["index"][agent_rows] - 3)
+
+
 def test_bad_input_is_refused_with_the_reason():
     with pytest.raises(ValueError, match="eps must be a finite number > 0"):
         make(eps=0.0)
@@ -157,6 +179,10 @@ def test_bad_input_is_refused_with_the_reason():
         make(alpha=-1)
     with pytest.raises(ValueError, match="the teacher buffer is empty"):
         make(n_teacher=0)
+    teacher = TensorDictReplayBuffer(storage=LazyTensorStorage(2))
+    teacher.extend(rows(2, TEACHER_MARK))
+    with pytest.raises(TypeError, match="the agent buffer needs a TensorStorage .*, got a ListStorage"):
+        PrioritizedMixedReplayBuffer(teacher, TensorDictReplayBuffer(storage=ListStorage(8)))
     rb, teacher, _ = make()
     teacher.extend(rows(1, TEACHER_MARK))
     with pytest.raises(RuntimeError, match="teacher buffer changed size \\(2 rows at construction, 3 now\\)"):

@@ -18,6 +18,7 @@ Reads of TorchRL internals (functions below):
   (:data:`ACTOR_MLP_PATH`, :data:`CRITIC_MLP_PATH`, :func:`mlp_params`);
 - ``TanhModule``'s bound buffers ``<out_key>_low`` / ``<out_key>_high`` (:func:`tanh_bounds`) and
   its ``clamp`` / ``non_trivial`` flags (:func:`tanh_map`);
+- ``TensorStorage._storage``, the TensorDict a tensor storage writes into (:func:`storage_tensordict`);
 - ``EnvBase._filtered_reset_keys`` (:func:`filtered_reset_keys`);
 - ``torchrl.envs.transforms.utils._get_reset`` (:func:`reset_mask`);
 - ``torchrl.data.postprocs.postprocs._multi_step_func`` (:func:`multi_step`);
@@ -55,6 +56,7 @@ __all__ = [
     "render_fps",
     "reset_mask",
     "soft_update_pairs",
+    "storage_tensordict",
     "tanh_bounds",
     "tanh_map",
     "timeit_totals",
@@ -175,6 +177,18 @@ def tanh_map(tanh, feature: torch.Tensor, low: torch.Tensor, high: torch.Tensor)
 
 
 # ----------------------------------------------------------------------------- envs and transforms
+# ----------------------------------------------------------------------------- replay
+def storage_tensordict(storage) -> TensorDictBase:
+    """The TensorDict a ``TensorStorage`` writes into: every row of its capacity, written or not.
+
+    ``TensorStorage.get`` (``storage[index]``) first slices it to the rows written, then indexes
+    every entry it holds; a reader that needs a few entries of a few rows, every gradient step
+    (:class:`~torchrl_sail.PrioritizedMixedReplayBuffer`), selects them first and indexes the
+    selection. Reads ``TensorStorage._storage``, which a lazy storage creates at its first write.
+    """
+    return storage._storage
+
+
 def filtered_reset_keys(env) -> list:
     """``env``'s effective reset keys: ``EnvBase._filtered_reset_keys`` (``reset_keys`` without the
     nested ones no done key uses), what TorchRL's own transforms read their ``"_reset"`` from."""

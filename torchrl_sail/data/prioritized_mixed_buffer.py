@@ -18,8 +18,9 @@ import numpy as np
 import torch
 from tensordict import TensorDictBase
 from tensordict.utils import NestedKey
-from torchrl.data.replay_buffers import ReplayBuffer
+from torchrl.data.replay_buffers import ReplayBuffer, TensorStorage
 
+from torchrl_sail._compat import storage_tensordict
 from torchrl_sail.data.keys import TRANSITION_KEYS
 
 __all__ = ["PrioritizedMixedReplayBuffer"]
@@ -95,7 +96,8 @@ class PrioritizedMixedReplayBuffer:
         teacher (ReplayBuffer): the demonstrations, kept for good. With a
             :class:`~torchrl_sail.TeacherReplayBuffer`, the rows its writer filled; otherwise the
             first ``len(teacher)`` storage rows.
-        agent (ReplayBuffer): the agent's replay, written by a writer that marks the rows it
+        agent (ReplayBuffer): the agent's replay, with a ``TensorStorage`` (e.g.
+            ``LazyTensorStorage``) of TensorDicts, written by a writer that marks the rows it
             writes (TorchRL's ``RoundRobinWriter``, the default).
 
     Keyword Args:
@@ -167,12 +169,22 @@ class PrioritizedMixedReplayBuffer:
         self._teacher_rows = stored_rows().clone() if stored_rows is not None else torch.arange(len(teacher))
         if not self._teacher_rows.numel():
             raise ValueError("PrioritizedMixedReplayBuffer: the teacher buffer is empty; add the demonstrations first.")
+        if not isinstance(agent.storage, TensorStorage):
+            raise TypeError(
+                "PrioritizedMixedReplayBuffer: the agent buffer needs a TensorStorage (e.g. LazyTensorStorage), "
+                f"got a {type(agent.storage).__name__}."
+            )
         self.teacher, self.agent = teacher, agent
         self.alpha, self.beta, self.eps, self.teacher_eps = float(alpha), float(beta), float(eps), float(teacher_eps)
         self.keys, self.tag_key, self.index_key = list(keys), tag_key, index_key
         self.weight_key, self.priority_key = weight_key, priority_key
         self.transform, self.row_id_key = transform, row_id_key
         self.num_teacher = self._teacher_rows.numel()
+        # the demonstrations' entries, gathered once: the teacher buffer does not change
+        self._teacher_data = teacher.storage[self._teacher_rows].select(*self.keys)
+        # the agent storage's TensorDict and its entries in keys (the same tensors), every step
+        # indexed in place of storage[index], which would index every entry stored
+        self._agent_source = self._agent_data = None
         self._tree = _PriorityTree(self.num_teacher + agent.storage.max_size)
         self.max_priority = 1.0
         self._set(np.arange(self.num_teacher), np.full(self.num_teacher, self.max_priority))
@@ -208,9 +220,9 @@ class PrioritizedMixedReplayBuffer:
         num_teacher = int(is_teacher.sum())
         parts = []
         if num_teacher:
-            parts.append(self.teacher.storage[self._teacher_rows[position[:num_teacher]]].select(*self.keys))
+            parts.append(self._teacher_data[position[:num_teacher]])
         if num_teacher < batch_size:
-            parts.append(self.agent.storage[position[num_teacher:] - self.num_teacher].select(*self.keys))
+            parts.append(self._agent_entries()[position[num_teacher:] - self.num_teacher])
         out = torch.cat(parts, 0) if len(parts) == 2 else parts[0]
         out.set(self.tag_key, is_teacher.to(out.device))
         out.set(self.index_key, position.to(out.device))
@@ -218,6 +230,12 @@ class PrioritizedMixedReplayBuffer:
         if self.row_id_key is not None:
             out.set(self.row_id_key, position.to(out.device))
         return out if self.transform is None else self.transform(out)
+
+    def _agent_entries(self) -> TensorDictBase:
+        source = storage_tensordict(self.agent.storage)
+        if source is not self._agent_source:  # created at the first write, or replaced by a load
+            self._agent_source, self._agent_data = source, source.select(*self.keys)
+        return self._agent_data
 
     @torch.no_grad()
     def update_priority(self, index, priority) -> None:
