@@ -176,7 +176,6 @@ def tanh_map(tanh, feature: torch.Tensor, low: torch.Tensor, high: torch.Tensor)
     return feature
 
 
-# ----------------------------------------------------------------------------- envs and transforms
 # ----------------------------------------------------------------------------- replay
 def storage_tensordict(storage) -> TensorDictBase:
     """The TensorDict a ``TensorStorage`` writes into: every row of its capacity, written or not.
@@ -189,6 +188,7 @@ def storage_tensordict(storage) -> TensorDictBase:
     return storage._storage
 
 
+# ----------------------------------------------------------------------------- envs and transforms
 def filtered_reset_keys(env) -> list:
     """``env``'s effective reset keys: ``EnvBase._filtered_reset_keys`` (``reset_keys`` without the
     nested ones no done key uses), what TorchRL's own transforms read their ``"_reset"`` from."""
