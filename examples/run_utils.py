@@ -19,6 +19,7 @@ from torchrl import timeit
 from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.record.loggers import get_logger
 
+from torchrl_sail._compat import fast_tensor_outputs
 from torchrl_sail.harness import (
     actor_summary,
     add_evaluation,
@@ -61,12 +62,16 @@ def set_cpu_math(threads: int, flush_denormal: bool) -> None:
 def start_run(cfg: DictConfig, script: str) -> tuple[Path, bool | None]:
     """Check the config for ``script``, set threads, denormals and seeds, and say how the run folder starts.
 
+    Also applies tensordict 0.15's shortcut for plain-tensor module outputs
+    (:func:`torchrl_sail._compat.fast_tensor_outputs`): same results, less time per step.
+
     Returns the run folder (Hydra's output directory) and :func:`~torchrl_sail.harness.resume_mode`'s
     answer; ``None`` means a finished run under ``resume=auto``, which the caller skips.
     """
     check_script(cfg, script)
     check_config(cfg)
     set_cpu_math(cfg.threads, cfg.flush_denormal)
+    fast_tensor_outputs()
     run_dir = Path(HydraConfig.get().runtime.output_dir)
     resuming = resume_mode(run_dir, cfg.resume, cfg.collector.total_frames, config=cfg)
     if resuming is None:  # resume=auto on a finished run (e.g. a rerun matrix)

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 import torch
-from tensordict import TensorDict
+from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictModule, TensorDictSequential
 from torch import nn
 from torchrl.data import Bounded
@@ -147,3 +147,24 @@ def test_storage_tensordict_holds_the_rows_storage_get_reads():
     assert data.batch_size == (6,)  # every row of the capacity
     index = torch.tensor([3, 0, 2])
     assert torch.equal(data[index]["x"], storage[index]["x"])
+
+
+def test_fast_tensor_outputs_changes_only_the_time():
+    assert _compat.fast_tensor_outputs() is True  # tensordict 0.14: patched
+    assert _compat.fast_tensor_outputs() is True  # idempotent: patched once
+    patched = TensorDictBase.from_any.__func__
+    original = patched.__wrapped__
+    assert not hasattr(original, "__wrapped__")
+    tensor, parameter = torch.arange(3.0), nn.Parameter(torch.ones(2))
+    # a plain tensor is returned as it is, as the original returns it; anything else goes the original's way
+    assert TensorDict.from_any(tensor) is tensor
+    assert original(TensorDict, tensor) is tensor
+    assert TensorDict.from_any(parameter) is parameter
+    nested = {"a": torch.zeros(2), "b": {"c": torch.ones(2, 3)}}
+    assert (TensorDict.from_any(nested) == original(TensorDict, nested)).all()
+    assert isinstance(TensorDict.from_any(nested), TensorDict)
+    assert torch.equal(TensorDict.from_any([1.0, 2.0]), torch.tensor([1.0, 2.0]))
+    # the path it is for: a TensorDictModule writes its output tensor itself
+    linear = nn.Linear(3, 2)
+    out = TensorDictModule(linear, ["x"], ["y"])(TensorDict({"x": torch.ones(4, 3)}, batch_size=[4]))
+    assert torch.equal(out["y"], linear(torch.ones(4, 3)))

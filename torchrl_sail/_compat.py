@@ -27,6 +27,9 @@ Reads of TorchRL internals (functions below):
   ``torch.ops.mkldnn._is_mkldnn_bf16_supported`` (:func:`native_bf16_matmul`). ``TD3Update`` also
   calls ``torch._foreach_lerp_`` directly: torch's foreach kernels have no public alias.
 
+One tensordict method is patched on request, not read: ``TensorDictBase.from_any`` gets tensordict
+0.15's shortcut for plain tensors (:func:`fast_tensor_outputs`), which the training scripts apply.
+
 Hooks this package's subclasses override or call on ``self``/``super()`` (inheritance, listed in
 :data:`SUBCLASS_HOOKS`; the subclasses use them in place): ``SAILLoss`` (a ``TD3Loss``) and
 ``NStepTransform`` (a ``MultiStepTransform``).
@@ -34,6 +37,9 @@ Hooks this package's subclasses override or call on ``self``/``super()`` (inheri
 
 from __future__ import annotations
 
+import functools
+
+import tensordict
 import torch
 from tensordict import TensorDictBase
 from torch import nn
@@ -48,6 +54,7 @@ __all__ = [
     "DropoutLayer",
     "SUBCLASS_HOOKS",
     "TORCHRL_VERSION",
+    "fast_tensor_outputs",
     "filtered_reset_keys",
     "mlp_params",
     "multi_step",
@@ -228,6 +235,45 @@ def render_fps(env, default: int = 30) -> int:
     """
     base = getattr(env, "base_env", env)
     return int(base._env.metadata.get("render_fps", default))
+
+
+# ----------------------------------------------------------------------------- tensordict
+def fast_tensor_outputs() -> bool:
+    """Make ``TensorDict.from_any`` return a plain tensor at once, as tensordict 0.15 does; ``True`` if patched.
+
+    tensordict 0.14's ``TensorDictModule`` passes every output through ``TensorDict.from_any``,
+    which, for a plain ``torch.Tensor``, tries each container kind it converts and then looks
+    pandas up on ``sys.path`` (``importlib.util.find_spec``) before returning the tensor as it is:
+    about 80 µs per output, paid by every actor, critic and discriminator call of a training step
+    and an environment step. tensordict 0.15 skips ``from_any`` for plain tensors; torchrl 0.14
+    pins tensordict below 0.15, so this applies the same shortcut to ``TensorDictBase.from_any``.
+    The result is the same object either way (0.14's ``from_any`` returns a plain tensor
+    unchanged), so only the time changes. Idempotent; a no-op (``False``) from tensordict 0.15 on.
+    The training scripts call it once at start; a pipeline of your own can call it the same way.
+
+    Examples:
+        >>> import torch
+        >>> from tensordict import TensorDict
+        >>> from torchrl_sail._compat import fast_tensor_outputs
+        >>> _ = fast_tensor_outputs()
+        >>> x = torch.zeros(3)
+        >>> TensorDict.from_any(x) is x
+        True
+    """
+    if tuple(int(part) for part in tensordict.__version__.split(".")[:2]) >= (0, 15):
+        return False
+    from_any = TensorDictBase.__dict__["from_any"].__func__
+    if hasattr(from_any, "__wrapped__"):  # patched already: the original is its __wrapped__
+        return True
+
+    @functools.wraps(from_any)
+    def from_any_shortcut(cls, obj, **kwargs):
+        if type(obj) is torch.Tensor:
+            return obj
+        return from_any(cls, obj, **kwargs)
+
+    TensorDictBase.from_any = classmethod(from_any_shortcut)
+    return True
 
 
 # ----------------------------------------------------------------------------- torch
