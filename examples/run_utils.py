@@ -19,6 +19,7 @@ from torchrl import timeit
 from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.record.loggers import get_logger
 
+from torchrl_sail import TD3ExplorationPolicy
 from torchrl_sail._compat import fast_tensor_outputs
 from torchrl_sail.harness import (
     actor_summary,
@@ -98,14 +99,25 @@ def make_run(cfg: DictConfig) -> dict:
 
 
 # ----------------------------------------------------------------------------- evaluation
+def one_module_policy(actor):
+    """A TD3 actor (``TensorDictSequential(TensorDictModule(MLP), TanhModule)``) as one module,
+    :class:`~torchrl_sail.TD3ExplorationPolicy` without noise: the same action from the same
+    modules (so a target actor's weights swapped into ``actor`` reach it) in one tensordict read and
+    write per step. Any other actor (SAC's, PPO's) is returned as it is."""
+    try:
+        return TD3ExplorationPolicy(actor)
+    except TypeError:  # not a TD3 actor
+        return actor
+
+
 @torch.no_grad()
 def evaluate_episodes(env, actor, episodes: int, max_steps: int, *, keep_rollouts: bool = False) -> list[dict]:
     """Deterministic episodes: the dense return, the delayed reward r_e and the length of each
     (and its ``"rollout"`` with ``keep_rollouts``)."""
-    results = []
+    results, policy = [], one_module_policy(actor)
     with set_exploration_type(ExplorationType.DETERMINISTIC):
         for _ in range(episodes):
-            rollout = env.rollout(max_steps, actor, break_when_any_done=True)
+            rollout = env.rollout(max_steps, policy, break_when_any_done=True)
             results.append(
                 {
                     "dense_return": float(rollout["next", "episode_return"][-1]),

@@ -414,6 +414,31 @@ def test_target_actor_evaluation_swaps_the_weights_in_and_back():
     assert {key: (id(value), type(value)) for key, value in after_target.items()} == target_ids
 
 
+def test_evaluations_act_with_the_td3_actor_as_one_module():
+    """evaluate_episodes steps a TD3 actor as one module (TD3ExplorationPolicy without noise): the
+    episodes are those of TorchRL's own rollout with the actor's sequence; SAC's actor is used as it is."""
+    import torch
+    from run_utils import evaluate_episodes, one_module_policy
+    from torchrl.envs import ExplorationType, set_exploration_type
+    from utils import make_agent
+
+    from torchrl_sail import TD3ExplorationPolicy, make_sail_env
+
+    env = make_sail_env("Pendulum-v1", max_episode_steps=20)
+    actor = make_agent(make(), env)[0]
+    policy = one_module_policy(actor)
+    assert isinstance(policy, TD3ExplorationPolicy) and policy.noise is None and policy.mlp is actor.module[0].module
+    env.set_seed(0)
+    with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+        reference = env.rollout(20, actor, break_when_any_done=True)
+    env.set_seed(0)
+    episode = evaluate_episodes(env, actor, 1, 20, keep_rollouts=True)[0]
+    assert torch.equal(episode["rollout"]["action"], reference["action"])
+    assert episode["dense_return"] == float(reference["next", "episode_return"][-1])
+    sac_actor = make_agent(make("algo=sail_sac"), env)[0]
+    assert one_module_policy(sac_actor) is sac_actor
+
+
 def test_actor_preactivation_coef_reaches_the_loss():
     from utils import make_agent, make_discriminator, make_losses
 
