@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import torch
 from tensordict import TensorDict
-from torchrl.data import LazyTensorStorage, ListStorage, TensorDictReplayBuffer
+from torchrl.data import LazyTensorStorage, ListStorage, ReplayBuffer, TensorDictReplayBuffer
 
 from torchrl_sail import PrioritizedMixedReplayBuffer, TopKTeacherReplayBuffer
 from torchrl_sail.data.prioritized_mixed_buffer import _PriorityTree
@@ -127,6 +127,40 @@ def test_state_dict_round_trip_and_size_check():
     other, _, _ = make(alpha=0.3, teacher_eps=1.0)
     with pytest.raises(ValueError, match=r"set with alpha=0.6 \(here 0.3\), teacher_eps=0.0 \(here 1.0\)"):
         other.load_state_dict(state)
+    # a state saved before the priority settings were saved with it: refused with the reason
+    old_state = {
+        key: value for key, value in state.items() if key not in ("num_teacher", "alpha", "eps", "teacher_eps")
+    }
+    with pytest.raises(ValueError, match=r"no \['num_teacher', 'alpha', 'eps', 'teacher_eps'\].*restart the run"):
+        fresh.load_state_dict(old_state)
+
+
+def test_a_load_or_an_emptied_agent_buffer_leaves_no_stale_priority():
+    """Rows set before a load of fewer rows, or before ``agent.empty()``, are out of the draws, the
+    probabilities and the weights; a loaded buffer draws what the saved one draws."""
+    rb, teacher, agent = make(n_agent=2, alpha=1.0, beta=1.0, eps=1e-9)
+    rb.update_priority(torch.tensor([0, 1, 2, 3]), torch.tensor([1.0, 2.0, 3.0, 4.0]))
+    state = rb.state_dict()  # 2 teacher + 2 agent rows
+    big, big_teacher, big_agent = make(n_agent=6, alpha=1.0, beta=1.0, eps=1e-9)
+    big.update_priority(torch.tensor([3, 7]), torch.tensor([100.0, 0.01]))  # 0.01: the min of the tree
+    big_agent.storage.load_state_dict(agent.storage.state_dict())  # the saved 2 agent rows
+    big.load_state_dict(state)
+    assert len(big) == 4
+    probabilities = big.probabilities()
+    assert torch.allclose(probabilities, torch.tensor([1.0, 2.0, 3.0, 4.0], dtype=torch.float64) / 10)
+    torch.manual_seed(0)
+    drawn = rb.sample(32)
+    torch.manual_seed(0)
+    loaded = big.sample(32)
+    assert torch.equal(drawn["index"], loaded["index"])
+    assert torch.equal(drawn["priority_weight"], loaded["priority_weight"])
+    # min v = 1 (position 0): the weights are (v / 1) ** -1, not those of the stale 0.01
+    assert torch.allclose(loaded["priority_weight"], 1.0 / (loaded["index"] + 1.0))
+    big_agent.empty()  # the agent rows go, their priorities with them
+    assert len(big) == 2 and torch.allclose(big.probabilities(), torch.tensor([1 / 3, 2 / 3], dtype=torch.float64))
+    assert not big.sample(64)["is_teacher"].logical_not().any()
+    big_agent.extend(rows(1, AGENT_MARK))  # a new row enters at the largest priority so far (4)
+    assert torch.allclose(big.probabilities(), torch.tensor([1.0, 2.0, 4.0], dtype=torch.float64) / 7)
 
 
 def test_a_teacher_buffer_reads_its_stored_rows():
@@ -183,6 +217,10 @@ def test_bad_input_is_refused_with_the_reason():
     teacher.extend(rows(2, TEACHER_MARK))
     with pytest.raises(TypeError, match="the agent buffer needs a TensorStorage .*, got a ListStorage"):
         PrioritizedMixedReplayBuffer(teacher, TensorDictReplayBuffer(storage=ListStorage(8)))
+    tensors = ReplayBuffer(storage=LazyTensorStorage(8))  # a TensorStorage of plain tensors
+    tensors.extend(torch.zeros(4, 1))
+    with pytest.raises(TypeError, match="the agent storage must hold TensorDicts, it holds a Tensor"):
+        PrioritizedMixedReplayBuffer(teacher, tensors, keys=["observation"]).sample(64)
     rb, teacher, _ = make()
     teacher.extend(rows(1, TEACHER_MARK))
     with pytest.raises(RuntimeError, match="teacher buffer changed size \\(2 rows at construction, 3 now\\)"):

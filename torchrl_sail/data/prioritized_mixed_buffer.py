@@ -40,8 +40,15 @@ class _PriorityTree:
         self.min = np.full(2 * self.width, np.inf)
 
     def set(self, position: np.ndarray, value: np.ndarray) -> None:
+        self._write(position, value, value)
+
+    def clear(self, position: np.ndarray) -> None:
+        """Unsets leaves: 0 in the sum tree, ``inf`` in the min tree."""
+        self._write(position, 0.0, np.inf)
+
+    def _write(self, position: np.ndarray, sum_value, min_value) -> None:
         node = position + self.width
-        self.sum[node], self.min[node] = value, value
+        self.sum[node], self.min[node] = sum_value, min_value
         for _ in range(self.width.bit_length() - 1):  # every level from the leaves' parents to the root
             # a parent listed twice gets the same value twice: no need to deduplicate
             node //= 2
@@ -89,8 +96,9 @@ class PrioritizedMixedReplayBuffer:
 
     As :class:`~torchrl_sail.MixedReplayBuffer`, a batch keeps ``keys`` of both buffers, teacher
     rows first, tagged ``True`` under ``tag_key``; their count follows the priorities. The teacher
-    buffer must not change after construction (DDPGfD's demonstrations): :meth:`sample` refuses one
-    whose size changed.
+    buffer must not change after construction (DDPGfD's demonstrations): its rows are gathered
+    once, :meth:`sample` refuses a teacher buffer whose size changed, and a change that keeps its
+    size goes unseen. Emptying the agent buffer (``agent.empty()``) drops its rows' priorities.
 
     Args:
         teacher (ReplayBuffer): the demonstrations, kept for good. With a
@@ -99,6 +107,10 @@ class PrioritizedMixedReplayBuffer:
         agent (ReplayBuffer): the agent's replay, with a ``TensorStorage`` (e.g.
             ``LazyTensorStorage``) of TensorDicts, written by a writer that marks the rows it
             writes (TorchRL's ``RoundRobinWriter``, the default).
+
+    Raises:
+        TypeError: the agent's storage is not a ``TensorStorage``, or (at the first draw of agent
+            rows) it holds plain tensors instead of a TensorDict.
 
     Keyword Args:
         alpha (float): the priority exponent (0: uniform). Defaults to ``0.6`` (PER's).
@@ -186,6 +198,7 @@ class PrioritizedMixedReplayBuffer:
         # indexed in place of storage[index], which would index every entry stored
         self._agent_source = self._agent_data = None
         self._tree = _PriorityTree(self.num_teacher + agent.storage.max_size)
+        self._set_until = 0  # every leaf from here on is unset
         self.max_priority = 1.0
         self._set(np.arange(self.num_teacher), np.full(self.num_teacher, self.max_priority))
         self.mark_update(torch.arange(len(agent)))
@@ -211,6 +224,7 @@ class PrioritizedMixedReplayBuffer:
                 f"PrioritizedMixedReplayBuffer: the teacher buffer changed size ({self.num_teacher} rows at "
                 f"construction, {len(self.teacher)} now); its priorities cover the rows it held then."
             )
+        self._drop_unstored()
         tree = self._tree
         # torch's generator, seeded and checkpointed with the rest of the run
         position = np.sort(tree.find(torch.rand(batch_size, dtype=torch.float64).numpy() * tree.total, len(self)))
@@ -234,8 +248,20 @@ class PrioritizedMixedReplayBuffer:
     def _agent_entries(self) -> TensorDictBase:
         source = storage_tensordict(self.agent.storage)
         if source is not self._agent_source:  # created at the first write, or replaced by a load
+            if not isinstance(source, TensorDictBase):
+                raise TypeError(
+                    "PrioritizedMixedReplayBuffer: the agent storage must hold TensorDicts, it holds a "
+                    f"{type(source).__name__}."
+                )
             self._agent_source, self._agent_data = source, source.select(*self.keys)
         return self._agent_data
+
+    def _drop_unstored(self) -> None:
+        # the leaves of rows the agent buffer no longer holds (emptied) stay out of the draws and the weights
+        stored = len(self)
+        if self._set_until > stored:
+            self._tree.clear(np.arange(stored, self._set_until))
+            self._set_until = stored
 
     @torch.no_grad()
     def update_priority(self, index, priority) -> None:
@@ -269,6 +295,7 @@ class PrioritizedMixedReplayBuffer:
         position, priority = position[last], priority[last]
         bonus = np.where(position < self.num_teacher, self.teacher_eps, 0.0)
         self._tree.set(position, (priority + self.eps + bonus) ** self.alpha)
+        self._set_until = max(self._set_until, int(position.max()) + 1)
 
     def update_tensordict_priority(self, batch: TensorDictBase) -> None:
         """:meth:`update_priority` with ``batch[index_key]`` and ``batch[priority_key]``."""
@@ -276,6 +303,7 @@ class PrioritizedMixedReplayBuffer:
 
     def probabilities(self) -> torch.Tensor:
         """``P(i)`` of every stored row, teacher rows first (for logging and tests)."""
+        self._drop_unstored()
         leaves = self._tree.leaves(np.arange(len(self)))
         return torch.as_tensor(leaves / self._tree.total)
 
@@ -289,8 +317,14 @@ class PrioritizedMixedReplayBuffer:
         }
 
     def load_state_dict(self, state: dict) -> None:
-        leaves = state["leaves"].cpu().numpy()
         name = "PrioritizedMixedReplayBuffer.load_state_dict"
+        missing = [key for key in ("leaves", "max_priority", "num_teacher", *self._settings()) if key not in state]
+        if missing:
+            raise ValueError(
+                f"{name}: the saved state has no {missing}: it was saved by an earlier torchrl_sail, whose "
+                "priorities this one cannot check; restart the run."
+            )
+        leaves = state["leaves"].cpu().numpy()
         if state["num_teacher"] != self.num_teacher or leaves.size != len(self):
             raise ValueError(
                 f"{name}: the saved priorities cover {state['num_teacher']} teacher and "
@@ -304,7 +338,9 @@ class PrioritizedMixedReplayBuffer:
                 + ", ".join(f"{key}={saved} (here {now})" for key, (saved, now) in changed.items())
             )
         self.max_priority = float(state["max_priority"])
+        self._tree = _PriorityTree(self._tree.size)  # no leaf of the state before survives the load
         self._tree.set(np.arange(leaves.size), leaves)
+        self._set_until = leaves.size
 
     def _settings(self) -> dict:
         return {"alpha": self.alpha, "eps": self.eps, "teacher_eps": self.teacher_eps}
