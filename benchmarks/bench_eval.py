@@ -1,0 +1,148 @@
+"""What one evaluation step costs: the example's deterministic episodes, played three ways.
+
+    python benchmarks/bench_eval.py [--env HalfCheetah-v4] [--episodes 3] [--rounds 3] [--threads 1] \
+        [--out benchmarks/results/collect/eval.json]
+
+Each way plays the same ``--episodes`` episodes (the same seed, the example's untrained actor)
+and is timed per env step; the ways alternate within each round. Reported: the median over
+``--rounds`` of the milliseconds per step, and of each round's ratio to ``sequence``:
+
+- ``sequence``: TorchRL's ``env.rollout`` with the actor's ``TensorDictSequential``
+  (``TensorDictModule(MLP)``, ``TanhModule``), every module output through tensordict 0.14's
+  ``TensorDict.from_any``;
+- ``sequence, shortcut``: the same with ``torchrl_sail._compat.fast_tensor_outputs`` applied;
+- ``one module, shortcut``: ``examples/run_utils.py``'s ``evaluate_episodes`` (the actor as one
+  ``TD3ExplorationPolicy`` without noise) with the shortcut: what the training scripts run.
+
+The record also holds each way's returns: a way that played other episodes than ``sequence``
+fails the run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import torch
+from hydra import compose, initialize_config_dir
+from tensordict import TensorDictBase
+from torchrl.envs import ExplorationType, set_exploration_type
+
+from torchrl_sail._compat import fast_tensor_outputs
+from torchrl_sail.harness import cpu_model, provenance
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "examples"))
+
+from config_schema import register_config_schema  # noqa: E402
+from run_utils import evaluate_episodes  # noqa: E402
+from utils import make_agent, make_env  # noqa: E402
+
+WAYS = ("sequence", "sequence, shortcut", "one module, shortcut")
+
+
+def parse_args(argv=None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--env", default="HalfCheetah-v4")
+    parser.add_argument("--episodes", type=int, default=3)
+    parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--threads", type=int, default=1)
+    parser.add_argument("--max-steps", type=int, default=None, help="steps per episode (default: the env's)")
+    parser.add_argument("--label", default="current", help="names this measurement in --out")
+    parser.add_argument("--out", type=Path, default=None, help="JSON file: one record per --label, replaced")
+    parser.add_argument("--other-load", default=None, help="what else ran on the machine, kept in the record")
+    return parser.parse_args(argv)
+
+
+def set_shortcut(on: bool) -> None:
+    """``TensorDictBase.from_any`` with tensordict 0.15's shortcut for plain tensors, or tensordict's own."""
+    if on:
+        fast_tensor_outputs()
+        return
+    current = TensorDictBase.__dict__["from_any"].__func__
+    TensorDictBase.from_any = classmethod(getattr(current, "__wrapped__", current))
+
+
+@torch.no_grad()
+def play(way: str, env, actor, episodes: int, max_steps: int) -> tuple[float, int, list[float]]:
+    """Seconds, env steps and dense returns of ``episodes`` deterministic episodes played ``way``."""
+    set_shortcut(way != "sequence")
+    env.set_seed(0)
+    start = time.perf_counter()
+    if way == "one module, shortcut":
+        results = evaluate_episodes(env, actor, episodes, max_steps)
+        returns, steps = [r["dense_return"] for r in results], sum(r["length"] for r in results)
+    else:
+        returns, steps = [], 0
+        with set_exploration_type(ExplorationType.DETERMINISTIC):
+            for _ in range(episodes):
+                rollout = env.rollout(max_steps, actor, break_when_any_done=True)
+                returns.append(float(rollout["next", "episode_return"][-1]))
+                steps += rollout.numel()
+    return time.perf_counter() - start, steps, returns
+
+
+def measure(args) -> tuple[dict[str, list[float]], dict[str, list[float]]]:
+    register_config_schema()
+    with initialize_config_dir(str(REPO / "conf"), version_base="1.3"):
+        cfg = compose("config", [f"env={args.env}"])
+    env = make_env(cfg, 10_000)
+    actor = make_agent(cfg, env)[0]
+    max_steps = args.max_steps or cfg.env.max_episode_steps
+    ms, returns = {way: [] for way in WAYS}, {}
+    original = TensorDictBase.__dict__["from_any"]
+    try:
+        for _ in range(args.rounds):
+            for way in WAYS:
+                seconds, steps, played = play(way, env, actor, args.episodes, max_steps)
+                ms[way].append(1e3 * seconds / steps)
+                returns.setdefault(way, played)
+    finally:
+        TensorDictBase.from_any = original  # as it was before the benchmark
+    for way, played in returns.items():
+        if played != returns["sequence"]:
+            raise RuntimeError(f"bench_eval: {way!r} played other episodes: {played} against {returns['sequence']}")
+    return ms, returns
+
+
+def main(argv=None) -> None:
+    args = parse_args(argv)
+    torch.set_num_threads(args.threads)
+    load_before = os.getloadavg()[0]  # the 1-minute load average: what else was running
+    code = provenance(REPO)
+    ms, returns = measure(args)
+    rows = []
+    print(f"{'way':<22} {'ms/step':>8} {'vs sequence':>12}")
+    for way, rounds in ms.items():
+        median = statistics.median(rounds)
+        # the ratio within each round, where the ways shared the machine's state, then its median
+        ratio = statistics.median(t / base for t, base in zip(rounds, ms["sequence"], strict=True))
+        rows.append({"way": way, "ms_per_step": median, "vs_sequence": ratio, "rounds": rounds})
+        print(f"{way:<22} {median:8.3f} {ratio:12.2f}")
+    if args.out is not None:
+        setup = {
+            "command": " ".join(["python", "benchmarks/bench_eval.py", *(argv or sys.argv[1:])]),
+            "cpu_model": cpu_model(),
+            "threads": args.threads,
+            "torch": torch.__version__,
+            "env": args.env,
+            "episodes": args.episodes,
+            "rounds": args.rounds,
+            "other_load": args.other_load,
+            "load_average_before": load_before,
+            **{key: code[key] for key in ("commit", "dirty")},
+        }
+        records = json.loads(args.out.read_text()) if args.out.exists() else {}
+        records[args.label] = {"setup": setup, "ways": rows, "returns": returns["sequence"]}
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(json.dumps(records, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    main()
