@@ -60,6 +60,15 @@ def test_unreproduced_columns_by_hand():
     assert unreproduced_columns(teacher, env, far=20.0)[-1]["column"] == 2  # 11 < 20 ranges: column 4 is not
 
 
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
+def test_unreproduced_columns_takes_demonstrations_on_another_device_than_the_env():
+    # with device=cuda the demonstrations are on the GPU and the check's rollout on the CPU
+    teacher = torch.tensor([[0.0, 1.0, 500.0], [0.0, 2.0, 501.0]], device="cuda")
+    env = torch.tensor([[0.3, 1.5, 0.0], [-0.2, 2.5, 1.0]])
+    found = unreproduced_columns(teacher, env, env_episodes=torch.tensor([0, 0], device="cuda"))
+    assert [(c["column"], c["kind"]) for c in found] == [(0, "constant"), (2, "outside")]
+
+
 def _hopper_teacher(path, constant_column=5, steps=50):
     """A Hopper-v4 teacher file in the paper's format, one column held at 0.0."""
     rng = np.random.default_rng(0)

@@ -100,7 +100,10 @@ def unreproduced_columns(
         >>> [c["column"] for c in unreproduced_columns(teacher, env, env_episodes=torch.tensor([0, 1]))]
         [2]
     """
-    teacher, env = teacher.double(), env.double()
+    # a one-time check before training: on the CPU, whatever device the demonstrations or the env are on
+    teacher, env = teacher.detach().cpu().double(), env.detach().cpu().double()
+    if env_episodes is not None:
+        env_episodes = env_episodes.cpu()
     t_low, t_high = teacher.min(0).values, teacher.max(0).values
     e_low, e_high = env.min(0).values, env.max(0).values
     e_range = e_high - e_low
