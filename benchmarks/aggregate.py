@@ -969,17 +969,21 @@ def plot_curves(path: Path, env: str, teacher: str, groups: list[Group]) -> None
     plt.close(fig)
 
 
+def _operational(key: str) -> bool:
+    """Whether the dotted config ``key`` is one of :data:`OPERATIONAL_RESUME_KEYS` or below one."""
+    return any(key == k or key.startswith(k + ".") for k in OPERATIONAL_RESUME_KEYS)
+
+
 def resume_notes(group: Group) -> list[str]:
     """The seeds of a group continued with other settings (``summary.json``'s ``resumes``, less
     :data:`OPERATIONAL_RESUME_KEYS`), one note per resume that changed any."""
     name, notes = f"{group.env} / {group.teacher} / {group.method}", []
     for run in sorted(group.runs, key=lambda r: r.seed):
         for resume in (run.summary or {}).get("resumes", []):
-            changes = [
-                f"{key} {old!r} -> {new!r}"
-                for key, (old, new) in resume["changes"].items()
-                if not any(key == k or key.startswith(k + ".") for k in OPERATIONAL_RESUME_KEYS)
-            ]
+            changes = [f"{key} {old!r} -> {new!r}" for key, (old, new) in resume["changes"].items()]
+            # and the settings a newer version added, which the checkpoint's config lacked
+            changes += [f"{key} (new) {value!r}" for key, value in resume.get("added", {}).items()]
+            changes = [c for c in changes if not _operational(c.split(" ", 1)[0])]
             if changes:
                 notes.append(f"{name}: seed {run.seed} went on from frame {resume['frames']} with {', '.join(changes)}")
     return notes

@@ -189,8 +189,16 @@ def test_restore_records_the_allowed_changes_against_the_checkpoints_config(tmp_
     with pytest.raises(ValueError, match=r"written with optim.gamma=0.99, this run has optim.gamma=0.9\."):
         restore_run(checkpoint, run_dir, run, config={"seed": 0, "optim": {"lr": 1.0e12, "gamma": 0.9}})
     run, _, _, checkpoint = fresh()
-    restore_run(checkpoint, run_dir, run, config={"seed": 0, "optim": {"lr": 1.0e12, "gamma": 0.99}, "new_key": 1})
-    assert run["resumes"] == []  # nothing changed; a key only one config has is not compared
+    config = {"seed": 0, "optim": {"lr": 1.0e12, "gamma": 0.99, "coef": 0.1}, "new_key": 1}
+    restore_run(checkpoint, run_dir, run, config=config)
+    # nothing changed; the keys only this run's config has (a newer version's settings) are recorded and said
+    assert run["resumes"] == [{"frames": 2000, "changes": {}, "added": {"new_key": 1, "optim.coef": 0.1}}]
+    assert "the checkpoint's config lacks new_key=1, optim.coef=0.1 (settings of a newer version)" in (
+        capsys.readouterr().out
+    )
+    run, _, _, checkpoint = fresh()
+    restore_run(checkpoint, run_dir, run, config={"seed": 0, "optim": {"lr": 1.0e12, "gamma": 0.99}})
+    assert run["resumes"] == []  # a key only the checkpoint's config has is not compared
 
 
 def test_restore_without_or_with_a_damaged_checkpoint(tmp_path):

@@ -183,7 +183,8 @@ def _refuse_other_config(run_dir: Path, config, may_change: Iterable[str]) -> No
 def config_changes(saved: Mapping, current: Mapping) -> dict[str, tuple]:
     """The dotted keys whose values differ between two plain nested configs, with ``(saved, current)``.
 
-    Keys that only one of them has are not compared (a config written by another version).
+    Keys that only one of them has are not compared (a config written by another version; see
+    :func:`config_additions`).
 
     Examples:
         >>> config_changes({"seed": 0, "optim": {"lr": 1e-3, "tau": 0.005}, "old": 1},
@@ -200,6 +201,25 @@ def config_changes(saved: Mapping, current: Mapping) -> dict[str, tuple]:
     return dict(sorted(changes.items()))
 
 
+def config_additions(saved: Mapping, current: Mapping) -> dict:
+    """The dotted keys ``current`` has and ``saved`` lacks, with their ``current`` values: settings a
+    newer version added, which a run resumed from an older version's checkpoint takes at their
+    current values.
+
+    Examples:
+        >>> config_additions({"seed": 0, "optim": {"lr": 1e-3}},
+        ...                  {"seed": 0, "optim": {"lr": 1e-3, "coef": 0.1}, "new": 2})
+        {'new': 2, 'optim.coef': 0.1}
+    """
+    added = {}
+    for key, new in current.items():
+        if key not in saved:
+            added[str(key)] = new
+        elif isinstance(saved[key], Mapping) and isinstance(new, Mapping):
+            added.update({f"{key}.{k}": v for k, v in config_additions(saved[key], new).items()})
+    return dict(sorted(added.items()))
+
+
 def _may_change(key: str, allowed: Iterable[str]) -> bool:
     """Whether the dotted ``key`` is one of ``allowed`` or below one (``eval`` covers ``eval.episodes``)."""
     return any(key == a or key.startswith(a + ".") for a in allowed)
@@ -212,7 +232,8 @@ def new_run(*, env: str, algo: str, seed: int, teacher: str | None) -> dict:
     pairs, see :func:`add_evaluation`) and ``passed_teacher_at``, the non-CSV loggers' states
     (``loggers``), the ``identity`` a resumed run must match, the resolved ``config`` it trains
     with (set by :func:`start_or_resume`), ``resumes``: the config changes each resume made
-    (``{"frames": ..., "changes": {key: [saved, new]}}``, see :func:`restore_run`), and
+    (``{"frames": ..., "changes": {key: [saved, new]}}``, and ``"added"`` where it has any, see
+    :func:`restore_run`), and
     ``wall_seconds``: the wall time of its training loop over all its starts, each up to its last
     checkpoint (building and imports left out; ``None`` for a run continued from a checkpoint of
     an earlier version, which did not keep it; the scripts update it with :func:`wall_time` at
@@ -373,9 +394,10 @@ def restore_run(
     or ``config.yaml`` for a checkpoint that has none): a change of a key outside
     ``may_change`` (:data:`RESUME_MAY_CHANGE`) is refused, before anything else is loaded; the
     allowed changes are printed and appended to ``run["resumes"]`` with the frame they apply
-    from. ``truncate_logs`` then drops the CSV rows logged after the checkpoint's frame
-    (:func:`truncate_scalar_logs`: this run logs them again); offline runs, whose logs are not
-    indexed by frames, keep theirs.
+    from, and so are the keys ``config`` has and the checkpoint's lacks (``"added"``: settings of a
+    newer version, at this run's values; :func:`config_additions`). ``truncate_logs`` then drops
+    the CSV rows logged after the checkpoint's frame (:func:`truncate_scalar_logs`: this run logs
+    them again); offline runs, whose logs are not indexed by frames, keep theirs.
 
     Raises:
         FileNotFoundError: no ``manifest.json`` in the checkpoint folder.
@@ -405,15 +427,23 @@ def restore_run(
                 f"resume: {path} was written with {name}={saved!r}, "
                 f"this run has {name}={this[key]!r}; use the same value."
             )
-    changes = (
-        {} if config is None else _config_changes_on_resume(path, _trained_config(run, run_dir), config, may_change)
-    )
+    trained = None if config is None else _trained_config(run, run_dir)
+    changes = {} if config is None else _config_changes_on_resume(path, trained, config, may_change)
+    added = {} if trained is None else {k: v for k, v in config_additions(trained, config).items() if k != "resume"}
     checkpoint.load(path)
     run.setdefault("resumes", [])  # a checkpoint of an earlier version has none
     run.setdefault("wall_seconds", None)  # nor its wall time: unknown
     if changes:
         print(f"resume at frame {run['frames']}: " + ", ".join(f"{k}={o!r} -> {n!r}" for k, (o, n) in changes.items()))
-        run["resumes"].append({"frames": run["frames"], "changes": {k: [o, n] for k, (o, n) in changes.items()}})
+    if added:
+        print(
+            f"resume at frame {run['frames']}: the checkpoint's config lacks "
+            + ", ".join(f"{k}={v!r}" for k, v in added.items())
+            + " (settings of a newer version), which apply from here"
+        )
+    if changes or added:
+        resume = {"frames": run["frames"], "changes": {k: [o, n] for k, (o, n) in changes.items()}}
+        run["resumes"].append({**resume, "added": added} if added else resume)
     if truncate_logs:
         truncate_scalar_logs(run_dir, run["frames"])
 
