@@ -74,3 +74,12 @@ def pytest_addoption(parser):
     # that optim.precision=bf16 learns too (the paired evidence beside the Hopper runs of
     # `benchmarks/campaign.py --stages precision`); the suite runs fp32.
     parser.addoption("--precision", choices=("fp32", "bf16"), default="fp32", help="optim.precision of test_learning")
+    # The device of the scripts' end-to-end runs (tests/example_runner.py): on a GPU machine,
+    # `python -m pytest -m slow tests/test_methods.py --device cuda` runs every method there, which
+    # CI's CPU runners cannot.
+    parser.addoption("--device", default="cpu", help="device=... of the scripts' runs in the end-to-end tests")
+
+
+def pytest_configure(config):
+    # read by example_runner.run in each (xdist) worker
+    os.environ["TORCHRL_SAIL_TEST_DEVICE"] = config.getoption("--device")

@@ -26,11 +26,19 @@ EXAMPLES = REPO / "examples"
 SCRIPT = EXAMPLES / "sail_td3.py"  # the off-policy methods; gail.py: on-policy; bc.py: behaviour cloning
 
 
+def with_test_device(overrides: tuple[str, ...]) -> tuple[str, ...]:
+    """``overrides`` plus ``device=<the suite's --device>`` (tests/conftest.py), unless they set one."""
+    device = os.environ.get("TORCHRL_SAIL_TEST_DEVICE", "cpu")
+    if device == "cpu" or any(o.lstrip("+").startswith("device=") for o in overrides):
+        return overrides
+    return (*overrides, f"device={device}")
+
+
 def start(run_dir: Path, *overrides: str, script: str = "sail_td3.py") -> subprocess.Popen:
     """Starts ``<script> hydra.run.dir=<run_dir> <overrides>`` without waiting (to kill it)."""
     env = {**os.environ, "WANDB_SILENT": "true"}
     return subprocess.Popen(
-        [sys.executable, str(EXAMPLES / script), f"hydra.run.dir={run_dir}", *overrides],
+        [sys.executable, str(EXAMPLES / script), f"hydra.run.dir={run_dir}", *with_test_device(overrides)],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         text=True,
@@ -57,6 +65,7 @@ def run(
     """
     env = {**os.environ, "WANDB_SILENT": "true", "HYDRA_FULL_ERROR": "0", **(env or {})}
     where = ["-m", f"hydra.sweep.dir={run_dir}"] if multirun else [f"hydra.run.dir={run_dir}"]
+    overrides = with_test_device(overrides)
     proc = run_python([str(EXAMPLES / script), *where, *overrides], env=env, timeout=900, prefix=prefix)
     if check and proc.returncode != 0:
         raise AssertionError(f"{script} failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-5000:]}")

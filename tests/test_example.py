@@ -355,7 +355,7 @@ def test_multiprocess_collector(tmp_path, teacher_dir):
     for row in (0, 250):
         env = make_sail_env("Hopper-v4", max_episode_steps=1000)
         seed = env.set_seed(seed)
-        torch.testing.assert_close(obs[row], env.reset()["observation"], msg=f"worker start at row {row}")
+        torch.testing.assert_close(obs[row].cpu(), env.reset()["observation"], msg=f"worker start at row {row}")
 
 
 @pytest.mark.parametrize("algo", ["sail_no_lfd", "sail_no_adapt", "sail_onpolicy"])
