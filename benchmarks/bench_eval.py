@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shlex
 import statistics
 import sys
 import time
@@ -33,7 +34,7 @@ from hydra import compose, initialize_config_dir
 from tensordict import TensorDictBase
 from torchrl.envs import ExplorationType, set_exploration_type
 
-from torchrl_sail._compat import fast_tensor_outputs
+from torchrl_sail._compat import fast_tensor_outputs, is_from_any_shortcut
 from torchrl_sail.harness import cpu_model, provenance
 
 REPO = Path(__file__).resolve().parents[1]
@@ -65,7 +66,8 @@ def set_shortcut(on: bool) -> None:
         fast_tensor_outputs()
         return
     current = TensorDictBase.__dict__["from_any"].__func__
-    TensorDictBase.from_any = classmethod(getattr(current, "__wrapped__", current))
+    if is_from_any_shortcut(current):
+        TensorDictBase.from_any = classmethod(current.__wrapped__)
 
 
 @torch.no_grad()
@@ -101,12 +103,14 @@ def measure(args) -> tuple[dict[str, list[float]], dict[str, list[float]]]:
             for way in WAYS:
                 seconds, steps, played = play(way, env, actor, args.episodes, max_steps)
                 ms[way].append(1e3 * seconds / steps)
-                returns.setdefault(way, played)
+                first = returns.setdefault(way, played)
+                # every round of every way plays the same episodes: the ways differ in time only
+                if played != first or played != returns["sequence"]:
+                    raise RuntimeError(
+                        f"bench_eval: {way!r} played other episodes: {played} against {returns['sequence']}"
+                    )
     finally:
         TensorDictBase.from_any = original  # as it was before the benchmark
-    for way, played in returns.items():
-        if played != returns["sequence"]:
-            raise RuntimeError(f"bench_eval: {way!r} played other episodes: {played} against {returns['sequence']}")
     return ms, returns
 
 
@@ -126,7 +130,7 @@ def main(argv=None) -> None:
         print(f"{way:<22} {median:8.3f} {ratio:12.2f}")
     if args.out is not None:
         setup = {
-            "command": " ".join(["python", "benchmarks/bench_eval.py", *(argv or sys.argv[1:])]),
+            "command": shlex.join(["python", "benchmarks/bench_eval.py", *(argv or sys.argv[1:])]),
             "cpu_model": cpu_model(),
             "threads": args.threads,
             "torch": torch.__version__,

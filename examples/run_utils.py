@@ -103,11 +103,9 @@ def one_module_policy(actor):
     """A TD3 actor (``TensorDictSequential(TensorDictModule(MLP), TanhModule)``) as one module,
     :class:`~torchrl_sail.TD3ExplorationPolicy` without noise: the same action from the same
     modules (so a target actor's weights swapped into ``actor`` reach it) in one tensordict read and
-    write per step. Any other actor (SAC's, PPO's) is returned as it is."""
-    try:
-        return TD3ExplorationPolicy(actor)
-    except TypeError:  # not a TD3 actor
-        return actor
+    write per step (a rollout kept with it has no pre-tanh ``"param"`` key). Any other actor
+    (SAC's, PPO's) is returned as it is."""
+    return TD3ExplorationPolicy(actor) if TD3ExplorationPolicy.supports(actor) else actor
 
 
 @torch.no_grad()

@@ -3,6 +3,7 @@ behaves as relied on (checked against torchrl 0.14.1: an upgrade that changes on
 
 from __future__ import annotations
 
+import functools
 import importlib
 import importlib.metadata
 from pathlib import Path
@@ -151,35 +152,69 @@ def test_storage_tensordict_holds_the_rows_storage_get_reads():
 
 
 @pytest.fixture
-def unpatched_from_any(monkeypatch):
-    """``TensorDictBase.from_any`` as tensordict has it for the test; whatever it was is back after."""
-    current = TensorDictBase.__dict__["from_any"]
-    monkeypatch.setattr(
-        TensorDictBase, "from_any", classmethod(getattr(current.__func__, "__wrapped__", current.__func__))
-    )
+def counted_from_any(monkeypatch):
+    """``TensorDictBase.from_any`` as tensordict has it, counting its calls by the type of their object;
+    whatever it was is back after the test."""
+    current = TensorDictBase.__dict__["from_any"].__func__
+    original = current.__wrapped__ if _compat.is_from_any_shortcut(current) else current
+    calls = []
+
+    def counted(cls, obj, **kwargs):
+        calls.append(type(obj))
+        return original(cls, obj, **kwargs)
+
+    monkeypatch.setattr(TensorDictBase, "from_any", classmethod(counted))
+    return calls
 
 
 @pytest.mark.skipif(
     tuple(int(part) for part in tensordict.__version__.split(".")[:2]) >= (0, 15),
     reason="tensordict 0.15 has the shortcut itself: fast_tensor_outputs patches nothing",
 )
-def test_fast_tensor_outputs_changes_only_the_time(unpatched_from_any):
-    assert not hasattr(TensorDictBase.from_any.__func__, "__wrapped__")
+def test_fast_tensor_outputs_changes_only_the_time(counted_from_any):
+    calls = counted_from_any
     assert _compat.fast_tensor_outputs() is True  # tensordict 0.14: patched
+    patched = TensorDictBase.__dict__["from_any"].__func__
     assert _compat.fast_tensor_outputs() is True  # idempotent: patched once
-    patched = TensorDictBase.from_any.__func__
+    assert TensorDictBase.__dict__["from_any"].__func__ is patched and _compat.is_from_any_shortcut(patched)
     original = patched.__wrapped__
-    assert not hasattr(original, "__wrapped__")
     tensor, parameter = torch.arange(3.0), nn.Parameter(torch.ones(2))
-    # a plain tensor is returned as it is, as the original returns it; anything else goes the original's way
-    assert TensorDict.from_any(tensor) is tensor
-    assert original(TensorDict, tensor) is tensor
+    # a plain tensor is returned as it is, without the original's call, which returns it as it is too
+    assert TensorDict.from_any(tensor) is tensor and TensorDict.from_any(tensor, device="cpu") is tensor
+    assert calls == []
+    assert original(TensorDict, tensor) is tensor and calls == [torch.Tensor]
+    with pytest.raises(TypeError):  # the original's keywords only
+        TensorDict.from_any(tensor, bogus=1)
+    # anything else goes the original's way
+    calls.clear()
     assert TensorDict.from_any(parameter) is parameter
     nested = {"a": torch.zeros(2), "b": {"c": torch.ones(2, 3)}}
-    assert (TensorDict.from_any(nested) == original(TensorDict, nested)).all()
     assert isinstance(TensorDict.from_any(nested), TensorDict)
     assert torch.equal(TensorDict.from_any([1.0, 2.0]), torch.tensor([1.0, 2.0]))
-    # the path it is for: a TensorDictModule writes its output tensor itself
+    assert calls == [nn.Parameter, dict, dict, list]  # the nested dict goes through from_any too
+    assert (TensorDict.from_any(nested) == original(TensorDict, nested)).all()
+    # the path it is for: a TensorDictModule's output tensor goes into its tensordict without the call
+    calls.clear()
     linear = nn.Linear(3, 2)
     out = TensorDictModule(linear, ["x"], ["y"])(TensorDict({"x": torch.ones(4, 3)}, batch_size=[4]))
-    assert torch.equal(out["y"], linear(torch.ones(4, 3)))
+    assert torch.equal(out["y"], linear(torch.ones(4, 3))) and calls == []
+
+
+@pytest.mark.skipif(
+    tuple(int(part) for part in tensordict.__version__.split(".")[:2]) >= (0, 15),
+    reason="tensordict 0.15 has the shortcut itself: fast_tensor_outputs patches nothing",
+)
+def test_fast_tensor_outputs_wraps_another_wrapper_of_from_any(counted_from_any):
+    # a profiler's or a mock's functools.wraps wrapper is not the shortcut: it gets wrapped in turn
+    current = TensorDictBase.__dict__["from_any"].__func__
+
+    @functools.wraps(current)
+    def foreign(cls, obj, **kwargs):
+        return current(cls, obj, **kwargs)
+
+    TensorDictBase.from_any = classmethod(foreign)
+    assert _compat.fast_tensor_outputs() is True
+    patched = TensorDictBase.__dict__["from_any"].__func__
+    assert _compat.is_from_any_shortcut(patched) and patched.__wrapped__ is foreign
+    tensor = torch.arange(3.0)
+    assert TensorDict.from_any(tensor) is tensor and counted_from_any == []

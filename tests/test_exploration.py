@@ -89,6 +89,12 @@ def test_refuses_other_structures():
     actor = make_actor(spec)
     with pytest.raises(TypeError, match="TensorDictSequential\\(TensorDictModule\\(MLP\\), TanhModule\\)"):
         TD3ExplorationPolicy(actor.module[0])
+    rewired = TensorDictSequential(actor.module[0], TanhModule(in_keys=["other"], out_keys=["action"], spec=spec))
+    with pytest.raises(TypeError, match="map the MLP's output to one action"):
+        TD3ExplorationPolicy(rewired)
+    # supports says the same without building one
+    assert TD3ExplorationPolicy.supports(actor)
+    assert not TD3ExplorationPolicy.supports(actor.module[0]) and not TD3ExplorationPolicy.supports(rewired)
     with pytest.raises(TypeError, match="noise must be an AdditiveGaussianModule"):
         TD3ExplorationPolicy(actor, torch.nn.Identity())
     other = AdditiveGaussianModule(spec=spec, action_key="other")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib.metadata
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -199,6 +200,20 @@ def test_restore_records_the_allowed_changes_against_the_checkpoints_config(tmp_
     run, _, _, checkpoint = fresh()
     restore_run(checkpoint, run_dir, run, config={"seed": 0, "optim": {"lr": 1.0e12, "gamma": 0.99}})
     assert run["resumes"] == []  # a key only the checkpoint's config has is not compared
+
+
+@pytest.mark.parametrize(
+    "saved_kwargs, kwargs",
+    [({}, {"ctrl_cost_weight": 5.0}), ({"ctrl_cost_weight": 5.0}, {}), ({"a": 1}, {"a": 2})],
+    ids=["added", "removed", "changed"],
+)
+def test_restore_refuses_any_change_of_the_envs_kwargs(tmp_path, saved_kwargs, kwargs):
+    # env.kwargs is the user's open mapping: an entry added or removed changes the env, not the version
+    saved_run(tmp_path / "run", config={**TRAINED, "env": {"name": "Hopper-v4", "kwargs": saved_kwargs}})
+    run, _, _, checkpoint = fresh()
+    config = {**TRAINED, "env": {"name": "Hopper-v4", "kwargs": kwargs}}
+    with pytest.raises(ValueError, match=re.escape(f"written with env.kwargs={saved_kwargs!r}, this run has")):
+        restore_run(checkpoint, tmp_path / "run", run, config=config)
 
 
 def test_restore_without_or_with_a_damaged_checkpoint(tmp_path):

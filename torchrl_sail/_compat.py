@@ -263,17 +263,25 @@ def fast_tensor_outputs() -> bool:
     if tuple(int(part) for part in tensordict.__version__.split(".")[:2]) >= (0, 15):
         return False
     from_any = TensorDictBase.__dict__["from_any"].__func__
-    if hasattr(from_any, "__wrapped__"):  # patched already: the original is its __wrapped__
+    if is_from_any_shortcut(from_any):
         return True
 
-    @functools.wraps(from_any)
-    def from_any_shortcut(cls, obj, **kwargs):
-        if type(obj) is torch.Tensor:
+    @functools.wraps(from_any)  # the original is its __wrapped__
+    def from_any_shortcut(cls, obj, *, auto_batch_size=False, batch_dims=None, device=None, batch_size=None):
+        if type(obj) is torch.Tensor:  # which from_any returns as it is, whatever the keywords
             return obj
-        return from_any(cls, obj, **kwargs)
+        return from_any(
+            cls, obj, auto_batch_size=auto_batch_size, batch_dims=batch_dims, device=device, batch_size=batch_size
+        )
 
+    from_any_shortcut._torchrl_sail_shortcut = True
     TensorDictBase.from_any = classmethod(from_any_shortcut)
     return True
+
+
+def is_from_any_shortcut(function) -> bool:
+    """Whether ``function`` is :func:`fast_tensor_outputs`' ``from_any`` (another wrapper is not)."""
+    return getattr(function, "_torchrl_sail_shortcut", False)
 
 
 # ----------------------------------------------------------------------------- torch

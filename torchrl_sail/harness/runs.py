@@ -180,44 +180,61 @@ def _refuse_other_config(run_dir: Path, config, may_change: Iterable[str]) -> No
         )
 
 
-def config_changes(saved: Mapping, current: Mapping) -> dict[str, tuple]:
+#: The config's open mappings, whose entries are the user's (``+env.kwargs.<name>=...``), not a
+#: version's settings: compared as whole values, so that adding or removing an entry is a change.
+OPEN_MAPPINGS = ("env.kwargs",)
+
+
+def config_changes(saved: Mapping, current: Mapping, *, whole: Iterable[str] = OPEN_MAPPINGS) -> dict[str, tuple]:
     """The dotted keys whose values differ between two plain nested configs, with ``(saved, current)``.
 
     Keys that only one of them has are not compared (a config written by another version; see
-    :func:`config_additions`).
+    :func:`config_additions`), except inside the mappings ``whole`` names, which are compared as
+    whole values.
 
     Examples:
         >>> config_changes({"seed": 0, "optim": {"lr": 1e-3, "tau": 0.005}, "old": 1},
         ...                {"seed": 0, "optim": {"lr": 1e-4, "tau": 0.005}, "new": 2})
         {'optim.lr': (0.001, 0.0001)}
+        >>> config_changes({"env": {"kwargs": {}}}, {"env": {"kwargs": {"ctrl_cost_weight": 5.0}}})
+        {'env.kwargs': ({}, {'ctrl_cost_weight': 5.0})}
     """
+    return dict(sorted(_changes(saved, current, set(whole), "").items()))
+
+
+def _changes(saved: Mapping, current: Mapping, whole: set[str], prefix: str) -> dict[str, tuple]:
     changes = {}
     for key in saved.keys() & current.keys():
-        old, new = saved[key], current[key]
-        if isinstance(old, Mapping) and isinstance(new, Mapping):
-            changes.update({f"{key}.{k}": v for k, v in config_changes(old, new).items()})
+        name, old, new = f"{prefix}{key}", saved[key], current[key]
+        if isinstance(old, Mapping) and isinstance(new, Mapping) and name not in whole:
+            changes.update(_changes(old, new, whole, f"{name}."))
         elif old != new:
-            changes[str(key)] = (old, new)
-    return dict(sorted(changes.items()))
+            changes[name] = (old, new)
+    return changes
 
 
-def config_additions(saved: Mapping, current: Mapping) -> dict:
+def config_additions(saved: Mapping, current: Mapping, *, whole: Iterable[str] = OPEN_MAPPINGS) -> dict:
     """The dotted keys ``current`` has and ``saved`` lacks, with their ``current`` values: settings a
     newer version added, which a run resumed from an older version's checkpoint takes at their
-    current values.
+    current values. The entries of the mappings ``whole`` names are :func:`config_changes`' instead.
 
     Examples:
         >>> config_additions({"seed": 0, "optim": {"lr": 1e-3}},
         ...                  {"seed": 0, "optim": {"lr": 1e-3, "coef": 0.1}, "new": 2})
         {'new': 2, 'optim.coef': 0.1}
     """
+    return dict(sorted(_additions(saved, current, set(whole), "").items()))
+
+
+def _additions(saved: Mapping, current: Mapping, whole: set[str], prefix: str) -> dict:
     added = {}
     for key, new in current.items():
+        name = f"{prefix}{key}"
         if key not in saved:
-            added[str(key)] = new
-        elif isinstance(saved[key], Mapping) and isinstance(new, Mapping):
-            added.update({f"{key}.{k}": v for k, v in config_additions(saved[key], new).items()})
-    return dict(sorted(added.items()))
+            added[name] = new
+        elif isinstance(saved[key], Mapping) and isinstance(new, Mapping) and name not in whole:
+            added.update(_additions(saved[key], new, whole, f"{name}."))
+    return added
 
 
 def _may_change(key: str, allowed: Iterable[str]) -> bool:

@@ -63,22 +63,10 @@ class TD3ExplorationPolicy(TensorDictModuleBase):
 
     def __init__(self, actor: TensorDictSequential, noise: AdditiveGaussianModule | None = None) -> None:
         super().__init__()
-        if not (
-            isinstance(actor, TensorDictSequential)
-            and len(actor.module) == 2
-            and type(actor.module[0]) is TensorDictModule
-            and isinstance(actor.module[1], TanhModule)
-        ):
-            raise TypeError(
-                "TD3ExplorationPolicy needs the actor to be TensorDictSequential(TensorDictModule(MLP), "
-                f"TanhModule), got {actor!r}."
-            )
+        unsupported = self._unsupported(actor)
+        if unsupported:
+            raise TypeError(unsupported)
         body, tanh = actor.module
-        if list(tanh.in_keys) != list(body.out_keys) or len(tanh.out_keys) != 1:
-            raise TypeError(
-                f"TD3ExplorationPolicy needs the TanhModule to map the MLP's output to one action; got "
-                f"{body.out_keys} -> {tanh.in_keys} -> {tanh.out_keys}."
-            )
         action_key = tanh.out_keys[0]
         if noise is not None:
             if not isinstance(noise, AdditiveGaussianModule):
@@ -92,6 +80,34 @@ class TD3ExplorationPolicy(TensorDictModuleBase):
         self.noise = noise
         self.in_keys = list(body.in_keys)
         self.out_keys = [action_key]
+
+    @classmethod
+    def supports(cls, actor) -> bool:
+        """Whether ``actor`` is what this policy fuses: ``TensorDictSequential(TensorDictModule(MLP),
+        TanhModule)``, the TanhModule mapping the MLP's output to one action (a TD3 actor; not SAC's
+        or PPO's)."""
+        return cls._unsupported(actor) is None
+
+    @staticmethod
+    def _unsupported(actor) -> str | None:
+        """Why ``actor`` is not a TD3 actor this policy fuses, or ``None``."""
+        if not (
+            isinstance(actor, TensorDictSequential)
+            and len(actor.module) == 2
+            and type(actor.module[0]) is TensorDictModule
+            and isinstance(actor.module[1], TanhModule)
+        ):
+            return (
+                "TD3ExplorationPolicy needs the actor to be TensorDictSequential(TensorDictModule(MLP), "
+                f"TanhModule), got {actor!r}."
+            )
+        body, tanh = actor.module
+        if list(tanh.in_keys) != list(body.out_keys) or len(tanh.out_keys) != 1:
+            return (
+                f"TD3ExplorationPolicy needs the TanhModule to map the MLP's output to one action; got "
+                f"{body.out_keys} -> {tanh.in_keys} -> {tanh.out_keys}."
+            )
+        return None
 
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
         feature = self.mlp(*(tensordict.get(key) for key in self.in_keys))
