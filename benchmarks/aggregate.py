@@ -980,10 +980,13 @@ def resume_notes(group: Group) -> list[str]:
     name, notes = f"{group.env} / {group.teacher} / {group.method}", []
     for run in sorted(group.runs, key=lambda r: r.seed):
         for resume in (run.summary or {}).get("resumes", []):
-            changes = [f"{key} {old!r} -> {new!r}" for key, (old, new) in resume["changes"].items()]
+            changes = [
+                f"{key} {old!r} -> {new!r}" for key, (old, new) in resume["changes"].items() if not _operational(key)
+            ]
             # and the settings a newer version added, which the checkpoint's config lacked
-            changes += [f"{key} (new) {value!r}" for key, value in resume.get("added", {}).items()]
-            changes = [c for c in changes if not _operational(c.split(" ", 1)[0])]
+            changes += [
+                f"{key} (new) {value!r}" for key, value in resume.get("added", {}).items() if not _operational(key)
+            ]
             if changes:
                 notes.append(f"{name}: seed {run.seed} went on from frame {resume['frames']} with {', '.join(changes)}")
     return notes
