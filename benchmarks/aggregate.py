@@ -983,10 +983,11 @@ def resume_notes(group: Group) -> list[str]:
             changes = [
                 f"{key} {old!r} -> {new!r}" for key, (old, new) in resume["changes"].items() if not _operational(key)
             ]
-            # and the settings a newer version added, which the checkpoint's config lacked
-            changes += [
-                f"{key} (new) {value!r}" for key, value in resume.get("added", {}).items() if not _operational(key)
-            ]
+            # and the settings another version added (the checkpoint's config lacked them) or removed
+            for kind, label in (("added", "new"), ("removed", "removed")):
+                changes += [
+                    f"{key} ({label}) {value!r}" for key, value in resume.get(kind, {}).items() if not _operational(key)
+                ]
             if changes:
                 notes.append(f"{name}: seed {run.seed} went on from frame {resume['frames']} with {', '.join(changes)}")
     return notes

@@ -199,6 +199,7 @@ def test_a_seed_continued_with_other_settings_is_noted(tmp_path):
         {"frames": 4000, "changes": {"threads_per_worker": [1, 2]}},
         # resumed by a newer version: the settings it added, less the operational ones
         {"frames": 4500, "changes": {}, "added": {"optim.coef": 0.001, "logger.new_option": 1}},
+        {"frames": 4800, "changes": {}, "removed": {"optim.old": 2}},
     ]
     (folder / "summary.json").write_text(json.dumps({**summary, "resumes": resumes}))
     text, _ = run_aggregate([tmp_path], tmp_path / "out")
@@ -207,6 +208,7 @@ def test_a_seed_continued_with_other_settings_is_noted(tmp_path):
         "- Hopper-v4 / paper / sail: seed 1 went on from frame 3000 with optim.lr 0.001 -> 0.0005",
         "- Hopper-v4 / paper / sail: seed 1 went on from frame 4000 with threads_per_worker 1 -> 2",
         "- Hopper-v4 / paper / sail: seed 1 went on from frame 4500 with optim.coef (new) 0.001",
+        "- Hopper-v4 / paper / sail: seed 1 went on from frame 4800 with optim.old (removed) 2",
     ]
 
 

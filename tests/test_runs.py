@@ -194,12 +194,14 @@ def test_restore_records_the_allowed_changes_against_the_checkpoints_config(tmp_
     restore_run(checkpoint, run_dir, run, config=config)
     # nothing changed; the keys only this run's config has (a newer version's settings) are recorded and said
     assert run["resumes"] == [{"frames": 2000, "changes": {}, "added": {"new_key": 1, "optim.coef": 0.1}}]
-    assert "the checkpoint's config lacks new_key=1, optim.coef=0.1 (settings of a newer version)" in (
+    assert "the checkpoint's config lacks new_key=1, optim.coef=0.1 (another version's settings)" in (
         capsys.readouterr().out
     )
+    # and the keys only the checkpoint's config has (an older version's settings), at their saved values
     run, _, _, checkpoint = fresh()
-    restore_run(checkpoint, run_dir, run, config={"seed": 0, "optim": {"lr": 1.0e12, "gamma": 0.99}})
-    assert run["resumes"] == []  # a key only the checkpoint's config has is not compared
+    restore_run(checkpoint, run_dir, run, config={"seed": 0, "optim": {"lr": 1.0e12}})
+    assert run["resumes"] == [{"frames": 2000, "changes": {}, "removed": {"optim.gamma": 0.99}}]
+    assert "the checkpoint's config has, this version does not, optim.gamma=0.99" in capsys.readouterr().out
 
 
 @pytest.mark.parametrize(

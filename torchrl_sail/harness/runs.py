@@ -249,7 +249,7 @@ def new_run(*, env: str, algo: str, seed: int, teacher: str | None) -> dict:
     pairs, see :func:`add_evaluation`) and ``passed_teacher_at``, the non-CSV loggers' states
     (``loggers``), the ``identity`` a resumed run must match, the resolved ``config`` it trains
     with (set by :func:`start_or_resume`), ``resumes``: the config changes each resume made
-    (``{"frames": ..., "changes": {key: [saved, new]}}``, and ``"added"`` where it has any, see
+    (``{"frames": ..., "changes": {key: [saved, new]}}``, and ``"added"`` and ``"removed"`` where any, see
     :func:`restore_run`), and
     ``wall_seconds``: the wall time of its training loop over all its starts, each up to its last
     checkpoint (building and imports left out; ``None`` for a run continued from a checkpoint of
@@ -412,7 +412,8 @@ def restore_run(
     ``may_change`` (:data:`RESUME_MAY_CHANGE`) is refused, before anything else is loaded; the
     allowed changes are printed and appended to ``run["resumes"]`` with the frame they apply
     from, and so are the keys ``config`` has and the checkpoint's lacks (``"added"``: settings of a
-    newer version, at this run's values; :func:`config_additions`). ``truncate_logs`` then drops
+    newer version, at this run's values; :func:`config_additions`) and those it lacks and the
+    checkpoint's has (``"removed"``, at their saved values). ``truncate_logs`` then drops
     the CSV rows logged after the checkpoint's frame (:func:`truncate_scalar_logs`: this run logs
     them again); offline runs, whose logs are not indexed by frames, keep theirs.
 
@@ -446,21 +447,23 @@ def restore_run(
             )
     trained = None if config is None else _trained_config(run, run_dir)
     changes = {} if config is None else _config_changes_on_resume(path, trained, config, may_change)
+    # settings another version added (at this run's values from here) or removed (the saved values)
     added = {} if trained is None else {k: v for k, v in config_additions(trained, config).items() if k != "resume"}
+    removed = {} if trained is None else {k: v for k, v in config_additions(config, trained).items() if k != "resume"}
     checkpoint.load(path)
     run.setdefault("resumes", [])  # a checkpoint of an earlier version has none
     run.setdefault("wall_seconds", None)  # nor its wall time: unknown
+    frames = run["frames"]
     if changes:
-        print(f"resume at frame {run['frames']}: " + ", ".join(f"{k}={o!r} -> {n!r}" for k, (o, n) in changes.items()))
-    if added:
-        print(
-            f"resume at frame {run['frames']}: the checkpoint's config lacks "
-            + ", ".join(f"{k}={v!r}" for k, v in added.items())
-            + " (settings of a newer version), which apply from here"
-        )
-    if changes or added:
-        resume = {"frames": run["frames"], "changes": {k: [o, n] for k, (o, n) in changes.items()}}
-        run["resumes"].append({**resume, "added": added} if added else resume)
+        print(f"resume at frame {frames}: " + ", ".join(f"{k}={o!r} -> {n!r}" for k, (o, n) in changes.items()))
+    for what, keys in (("lacks", added), ("has, this version does not,", removed)):
+        if keys:
+            listed = ", ".join(f"{k}={v!r}" for k, v in keys.items())
+            print(f"resume at frame {frames}: the checkpoint's config {what} {listed} (another version's settings)")
+    if changes or added or removed:
+        resume = {"frames": frames, "changes": {k: [o, n] for k, (o, n) in changes.items()}}
+        resume.update({name: keys for name, keys in (("added", added), ("removed", removed)) if keys})
+        run["resumes"].append(resume)
     if truncate_logs:
         truncate_scalar_logs(run_dir, run["frames"])
 
