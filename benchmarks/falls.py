@@ -10,10 +10,10 @@ run, ``--teacher-return``). Its evaluations logged the online actor and, with
 ``eval/return_online``; otherwise the target actor's columns read n/a). Per run: the fall share of
 each actor (:func:`torchrl_sail.harness.fall_share`), and how often one fell where the other did not.
 Then, pooled over the runs, each diagnostic averaged over the ``--window`` frames before an
-evaluation, at the online actor's falls against its other evaluations after its first pass:
+evaluation after the online actor's first pass, at each actor's falls against its other evaluations:
 ``actor/change`` and ``actor/target_gap`` (how far a TD3 block moves the actor, how far it is from
 the target actor), ``sail/q_mean``, ``sail/d_reward_mean``, ``train/dense_return`` and the
-trajectories promoted.
+trajectories promoted, each over its run's own mean after the pass, so that envs pool.
 """
 
 from __future__ import annotations
@@ -114,6 +114,21 @@ def mean_of(rows: list[dict], key: str) -> str:
     return f"{statistics.fmean(values):.4g} (n={len(values)})" if values else "-"
 
 
+def relative(rows: list[dict]) -> list[dict]:
+    """``rows`` with each diagnostic (and ``promoted``) over its mean in these rows, so that runs of
+    different envs and scales pool: 1.0 is the run's own average after its pass (``None`` where the
+    mean is 0 or missing)."""
+    keys = (*DIAGNOSTICS, "promoted")
+    means = {}
+    for key in keys:
+        values = [row[key] for row in rows if row[key] is not None]
+        means[key] = statistics.fmean(values) if values else 0.0
+    return [
+        {**row, **{key: None if row[key] is None or not means[key] else row[key] / means[key] for key in keys}}
+        for row in rows
+    ]
+
+
 def report(folders: list[Path], window: int, given_teacher: float | None = None) -> str:
     lines = [
         "| run | teacher | passed at | fall share: online actor | target actor "
@@ -123,23 +138,34 @@ def report(folders: list[Path], window: int, given_teacher: float | None = None)
     pooled = []
     for folder in folders:
         line, rows = run_rows(folder, window, given_teacher)
-        pooled += rows
+        pooled += relative(rows)
         lines.append(
             f"| `{line['run']}` | {line['teacher']:.1f} | {line['passed_at'] or '-'} | {shown(line['online'])} "
             f"| {shown(line['target'])} | {'-' if line['online_only'] is None else line['online_only']} "
             f"| {'-' if line['target_only'] is None else line['target_only']} |"
         )
-    fell = [row for row in pooled if row["fell"]]
-    held = [row for row in pooled if not row["fell"]]
+    groups = {}
+    for actor, flag in (("online", "fell"), ("target", "target_fell")):
+        judged = [row for row in pooled if row[flag] is not None]
+        groups[actor] = ([row for row in judged if row[flag]], [row for row in judged if not row[flag]])
+    (online_fell, online_held), (target_fell, target_held) = groups["online"], groups["target"]
     lines += [
         "",
-        f"Over the {window}-frame window before each evaluation after the online actor passed: at its "
-        f"{len(fell)} falls against its {len(held)} other evaluations.",
+        f"Over the {window}-frame window before each evaluation after the online actor passed: at the online "
+        f"actor's {len(online_fell)} falls against its {len(online_held)} other evaluations, and at the target "
+        f"actor's {len(target_fell)} falls against its {len(target_held)} others (same evaluations, same windows). "
+        "Each value is over its run's own mean after the pass (1 = that run's average), so runs of different "
+        "envs pool.",
         "",
-        "| diagnostic | before a fall | before the others |",
-        "|---|---|---|",
+        "| diagnostic | before an online fall | before the online actor's others "
+        "| before a target fall | before the target actor's others |",
+        "|---|---|---|---|---|",
     ]
-    lines += [f"| `{key}` | {mean_of(fell, key)} | {mean_of(held, key)} |" for key in (*DIAGNOSTICS, "promoted")]
+    lines += [
+        f"| `{key}` | {mean_of(online_fell, key)} | {mean_of(online_held, key)} "
+        f"| {mean_of(target_fell, key)} | {mean_of(target_held, key)} |"
+        for key in (*DIAGNOSTICS, "promoted")
+    ]
     return "\n".join(lines)
 
 

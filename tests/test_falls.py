@@ -43,7 +43,11 @@ def test_falls_of_both_actors_and_the_logs_before_them(tmp_path):
     assert [row["promoted"] for row in after] == [2, 0, 3]  # 3 - 1, 3 - 3, 6 - 3
     text = falls.report([tmp_path / "run"], window=10_000)
     assert "| 66.7% (2/3) | 33.3% (1/3) | 1 | 0 |" in text
-    assert "| `actor/change` | 0.7 (n=2) | 0.1 (n=1) |" in text and "| `promoted` | 2.5 (n=2) | 0 (n=1) |" in text
+    # over the run's means (actor/change 0.5: 1.0, 0.2, 1.8; promoted 5/3: 1.2, 0, 1.8): online falls
+    # (30k, 50k) against 40k; the target's fall (50k) against 30k and 40k
+    assert "| `actor/change` | 1.4 (n=2) | 0.2 (n=1) | 1.8 (n=1) | 0.6 (n=2) |" in text
+    assert "| `promoted` | 1.5 (n=2) | 0 (n=1) | 1.8 (n=1) | 0.6 (n=2) |" in text
+    assert "target actor's 1 falls against its 2 others" in text
 
 
 def test_a_run_that_evaluated_the_online_actor_reads_its_target_actor_as_the_other(tmp_path):
@@ -61,7 +65,9 @@ def test_a_run_that_evaluated_the_online_actor_alone_has_no_target_figures(tmp_p
     line, after = falls.run_rows(tmp_path / "run", window=10_000)
     assert line["online"] == {"share": 2 / 3, "falls": 2, "evaluations": 3} and line["target"] is None
     assert line["online_only"] is None and [row["fell"] for row in after] == [True, False, True]
-    assert "| 66.7% (2/3) | n/a | - | - |" in falls.report([tmp_path / "run"], window=10_000)
+    text = falls.report([tmp_path / "run"], window=10_000)
+    assert "| 66.7% (2/3) | n/a | - | - |" in text
+    assert "| `actor/change` | 1.4 (n=2) | 0.2 (n=1) | - | - |" in text
 
 
 def test_a_run_that_evaluated_the_target_actor_alone_is_refused(tmp_path):
