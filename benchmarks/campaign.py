@@ -118,13 +118,20 @@ WEAK_STAGES = ("weak", "preact", "centred", "logit")
 LOGIT = ("algo.reward.kind=airl",)
 NO_EARLY_TERMINATION = ("Swimmer-v4", "HalfCheetah-v4")
 WEAK_TEACHERS_DIR = REPO / "benchmarks" / "results" / "campaign" / "teachers"
-# What a run's report needs from its logs: the evaluation curve, then the diagnostics that explain
-# it (D's accuracy and rewards on both sides, Q, the actor's saturation, the threshold C and promotions,
+# What a run's report needs from its logs: the evaluation curve (with the share of each evaluation's
+# episodes below the teacher, and its lowest episode), then the diagnostics that explain it (D's
+# accuracy and rewards on both sides, Q, the actor's saturation, the threshold C and promotions,
 # alpha, speed).
 DIAGNOSTICS = (
     "eval/return",
     "eval/return_target",
     "eval/return_online",
+    "eval/below_teacher",
+    "eval/below_teacher_target",
+    "eval/below_teacher_online",
+    "eval/min_return",
+    "eval/min_return_target",
+    "eval/min_return_online",
     "actor/change",
     "actor/target_gap",
     "train/dense_return",

@@ -13,7 +13,9 @@ Then, pooled over the runs, each diagnostic averaged over the ``--window`` frame
 evaluation after the online actor's first pass, at each actor's falls against its other evaluations:
 ``actor/change`` and ``actor/target_gap`` (how far a TD3 block moves the actor, how far it is from
 the target actor), ``sail/q_mean``, ``sail/d_reward_mean``, ``train/dense_return`` and the
-trajectories promoted, each over its run's own mean after the pass, so that envs pool.
+trajectories promoted, each over its run's own mean after the pass, so that envs pool; and, where
+the run logged it, the share of the evaluation's episodes below the teacher (a fall of one episode
+in ten, or a collapse).
 """
 
 from __future__ import annotations
@@ -38,18 +40,13 @@ DIAGNOSTICS = (
 PROMOTED = "teacher/num_promoted"
 
 
-def actors(folder: Path) -> dict[str, dict[int, float]]:
-    """The run's evaluations by actor, ``{"online": {frames: return}, "target": {...}}``."""
+def actors(folder: Path, tag: str = "eval/return") -> dict[str, dict[int, float]]:
+    """The run's evaluations by actor, ``{"online": {frames: value}, "target": {...}}``, of ``tag``
+    (``eval/below_teacher``: the share of the evaluation's episodes below the teacher)."""
     config = yaml.safe_load((folder / "config.yaml").read_text())
     evaluated = (config.get("eval") or {}).get("actor", "online")  # a run of an earlier version: online
     other = "online" if evaluated == "target" else "target"
-    curves = {
-        evaluated: dict(read_scalar(folder, "eval/return")),
-        other: dict(read_scalar(folder, f"eval/return_{other}")),
-    }
-    if not curves["online"]:
-        raise ValueError(f"{folder}: no eval/return_online: the run evaluated its target actor alone")
-    return curves
+    return {evaluated: dict(read_scalar(folder, tag)), other: dict(read_scalar(folder, f"{tag}_{other}"))}
 
 
 def window_mean(series: list[tuple[int, float]], start: int, end: int) -> float | None:
@@ -75,6 +72,9 @@ def run_rows(folder: Path, window: int, given_teacher: float | None = None) -> t
     """The run's summary line and one row per online evaluation after its first pass."""
     teacher = teacher_return(folder, given_teacher)
     curves = actors(folder)
+    if not curves["online"]:
+        raise ValueError(f"{folder}: no eval/return_online: the run evaluated its target actor alone")
+    below = actors(folder, "eval/below_teacher")  # empty for runs of versions that did not log it
     online, target = curves["online"], curves["target"] or None  # None: the target actor was not evaluated
     frames = sorted(set(online) & set(target)) if target else sorted(online)
     share = {
@@ -86,7 +86,12 @@ def run_rows(folder: Path, window: int, given_teacher: float | None = None) -> t
     series = {tag: read_scalar(folder, tag) for tag in (*DIAGNOSTICS, PROMOTED)}
     rows = []
     for f in after:
-        row = {"fell": online[f] < teacher, "target_fell": None if target is None else target[f] < teacher}
+        row = {
+            "fell": online[f] < teacher,
+            "target_fell": None if target is None else target[f] < teacher,
+            "online_below": below["online"].get(f),
+            "target_below": below["target"].get(f),
+        }
         for tag in DIAGNOSTICS:
             row[tag] = window_mean(series[tag], f - window, f)
         row["promoted"] = last_at(series[PROMOTED], f) - last_at(series[PROMOTED], f - window)
@@ -166,6 +171,11 @@ def report(folders: list[Path], window: int, given_teacher: float | None = None)
         f"| {mean_of(target_fell, key)} | {mean_of(target_held, key)} |"
         for key in (*DIAGNOSTICS, "promoted")
     ]
+    lines.append(
+        f"| at the evaluation: share of its episodes below the teacher (`eval/below_teacher`, not relative) "
+        f"| {mean_of(online_fell, 'online_below')} | {mean_of(online_held, 'online_below')} "
+        f"| {mean_of(target_fell, 'target_below')} | {mean_of(target_held, 'target_below')} |"
+    )
     return "\n".join(lines)
 
 

@@ -206,7 +206,7 @@ def main(cfg):  # noqa: F821
 
         if crossings(cfg.eval.every_frames, 0, before, frames):
             copy_observation_norm(env, eval_env)
-            metrics["eval/return"] = record_evaluation(eval_env, actor, None, cfg, run, frames, teacher_return)
+            metrics.update(record_evaluation(eval_env, actor, None, cfg, run, frames, teacher_return))
         if crossings(cfg.eval.video_every_frames, 0, before, frames):
             copy_observation_norm(env, render_env)
             log_video(loggers, render_env, actor, cfg, run_dir, frames)

@@ -19,7 +19,7 @@ import contextlib
 
 import torch
 from omegaconf import DictConfig
-from run_utils import crossings, evaluate_actor, record_evaluation
+from run_utils import actor_returns, crossings, evaluation_metrics, record_evaluation
 from torchrl import timeit
 from utils import (
     ActorDrift,
@@ -402,8 +402,9 @@ def make_learning_blocks(cfg: DictConfig, td3_block: TD3Block, batches, d_loss, 
 
 class Evaluations:
     """Every ``eval.every_frames`` frames: deterministic episodes of the actor ``eval.actor`` names,
-    kept in ``run["evals"]`` (``eval/return``), and with ``eval.other_actor`` of the other actor
-    (``eval/return_<online|target>``: same seeds, an env of its own); every
+    kept in ``run["evals"]`` (``eval/return``, with ``eval/min_return`` and ``eval/below_teacher``:
+    :func:`run_utils.evaluation_metrics`), and with ``eval.other_actor`` of the other actor
+    (``eval/return_<online|target>`` and so on: same seeds, an env of its own); every
     ``eval.video_every_frames`` frames a video of one episode.
 
     Args:
@@ -419,13 +420,16 @@ class Evaluations:
     def __call__(self, before: int, frames: int) -> dict:
         cfg, metrics = self.cfg, {}
         if crossings(cfg.eval.every_frames, 0, before, frames):
-            metrics["eval/return"] = record_evaluation(
-                self.envs["evaluated"], self.actor, self.loss, cfg, self.run, frames, self.teacher_return
+            metrics.update(
+                record_evaluation(
+                    self.envs["evaluated"], self.actor, self.loss, cfg, self.run, frames, self.teacher_return
+                )
             )
             if self.envs["other"] is not None:
-                metrics[f"eval/return_{self.other}"] = evaluate_actor(
+                returns = actor_returns(
                     self.envs["other"], self.actor, self.loss, self.other, cfg.eval.episodes, cfg.env.max_episode_steps
                 )
+                metrics.update(evaluation_metrics(returns, self.teacher_return, f"_{self.other}"))
         if crossings(cfg.eval.video_every_frames, 0, before, frames):
             self.video(self.envs["video"], self.actor, frames)
         return metrics

@@ -132,29 +132,42 @@ def evaluate(env, actor, episodes: int, max_steps: int) -> float:
     return sum(e["dense_return"] for e in evaluate_episodes(env, actor, episodes, max_steps)) / episodes
 
 
-def evaluate_target_actor(env, actor, loss, episodes: int, max_steps: int) -> float:
-    """Mean dense return of deterministic episodes of a TD3 loss's target actor (the Polyak average of
-    ``actor``'s recent weights): its weights stand in ``actor``'s for the episodes, then ``actor``'s
-    own come back."""
+def actor_returns(env, actor, loss, which: str, episodes: int, max_steps: int) -> list[float]:
+    """Dense returns of deterministic episodes of the actor ``which`` names: ``"online"`` (``actor``
+    itself) or ``"target"`` (the loss's target actor, whose weights stand in ``actor``'s for the
+    episodes, then ``actor``'s own come back)."""
+    if str(which) != "target":
+        return [e["dense_return"] for e in evaluate_episodes(env, actor, episodes, max_steps)]
     # preserve_module_state=False: the loss's target tensors stay the buffers it saves and updates
     with loss.target_actor_network_params.to_module(actor, preserve_module_state=False):
-        return evaluate(env, actor, episodes, max_steps)
+        return [e["dense_return"] for e in evaluate_episodes(env, actor, episodes, max_steps)]
 
 
-def evaluate_actor(env, actor, loss, which: str, episodes: int, max_steps: int) -> float:
-    """Mean dense return of deterministic episodes of the actor ``which`` names: ``"online"`` (``actor``
-    itself) or ``"target"`` (the loss's target actor, :func:`evaluate_target_actor`)."""
-    if str(which) == "target":
-        return evaluate_target_actor(env, actor, loss, episodes, max_steps)
-    return evaluate(env, actor, episodes, max_steps)
+def evaluation_metrics(returns: list[float], teacher_return: float, suffix: str = "") -> dict:
+    """An evaluation's logged figures from its episodes' returns: ``eval/return`` (their mean),
+    ``eval/min_return`` and ``eval/below_teacher``, the share of its episodes below the teacher's
+    return (a mean below it from one fallen episode reads 0.1 of 10, a collapse 1.0); each tag with
+    ``suffix`` (``"_online"``: the other actor's).
+
+    Examples:
+        >>> evaluation_metrics([300.0, 100.0, 350.0, 250.0], teacher_return=200.0)
+        {'eval/return': 250.0, 'eval/min_return': 100.0, 'eval/below_teacher': 0.25}
+    """
+    return {
+        f"eval/return{suffix}": sum(returns) / len(returns),
+        f"eval/min_return{suffix}": min(returns),
+        f"eval/below_teacher{suffix}": sum(value < teacher_return for value in returns) / len(returns),
+    }
 
 
-def record_evaluation(eval_env, actor, loss, cfg: DictConfig, run: dict, frames: int, teacher_return: float) -> float:
-    """The loops' evaluation at ``frames`` of the actor ``eval.actor`` names: its mean return, kept in
-    ``run["evals"]`` with the first frame it beat the teacher (``run["passed_teacher_at"]``)."""
-    value = evaluate_actor(eval_env, actor, loss, cfg.eval.actor, cfg.eval.episodes, cfg.env.max_episode_steps)
-    add_evaluation(run, frames, value, teacher_return)
-    return value
+def record_evaluation(eval_env, actor, loss, cfg: DictConfig, run: dict, frames: int, teacher_return: float) -> dict:
+    """The loops' evaluation at ``frames`` of the actor ``eval.actor`` names: its
+    :func:`evaluation_metrics`, the mean return kept in ``run["evals"]`` with the first frame it beat
+    the teacher (``run["passed_teacher_at"]``)."""
+    returns = actor_returns(eval_env, actor, loss, cfg.eval.actor, cfg.eval.episodes, cfg.env.max_episode_steps)
+    metrics = evaluation_metrics(returns, teacher_return)
+    add_evaluation(run, frames, metrics["eval/return"], teacher_return)
+    return metrics
 
 
 class BestPolicy:

@@ -376,12 +376,12 @@ def test_actor_saturation_on_the_agent_rows():
 
 
 def test_target_actor_evaluation_swaps_the_weights_in_and_back():
-    """evaluate_target_actor runs the actor with the loss's target weights, then restores the actor's,
-    and leaves the loss's target tensors the same objects (what the run saves and Polyak-updates)."""
+    """actor_returns(which="target") runs the actor with the loss's target weights, then restores the
+    actor's, and leaves the loss's target tensors the same objects (what the run saves and Polyak-updates)."""
     import copy
 
     import torch
-    from run_utils import evaluate, evaluate_target_actor
+    from run_utils import actor_returns, evaluate
     from tensordict import TensorDict
     from utils import make_agent, make_discriminator, make_losses
 
@@ -403,9 +403,10 @@ def test_target_actor_evaluation_swaps_the_weights_in_and_back():
     loss.target_actor_network_params.to_module(reference)
 
     env.set_seed(0)
-    swapped = evaluate_target_actor(env, actor, loss, 2, 20)
+    swapped = actor_returns(env, actor, loss, "target", 2, 20)
     env.set_seed(0)
-    assert swapped == evaluate(env, reference, 2, 20)
+    assert sum(swapped) / 2 == evaluate(env, reference, 2, 20)
+    swapped = sum(swapped) / 2
     env.set_seed(0)
     assert evaluate(env, actor, 2, 20) != swapped  # the actor's own weights are back
     after = TensorDict.from_module(actor).flatten_keys(".")

@@ -92,6 +92,10 @@ def test_training_evaluates_the_target_actor_on_the_evaluations_start_states(tra
     result = json.loads((tmp_path / "target.json").read_text())
     assert frames == 2000 and result["checkpoint_frames"] == 2000
     assert result["dense_return"]["mean"] == pytest.approx(logged, rel=1e-6) and logged != online
+    [(_, lowest)] = read_scalar(trained, "eval/min_return_target")
+    assert lowest == pytest.approx(result["dense_return"]["min"], rel=1e-6)
+    [(_, below)] = read_scalar(trained, "eval/below_teacher_target")
+    assert below == 1.0  # 2000 frames of training: both episodes below the Hopper teacher's 1480.7
 
 
 def test_evaluate_reproduces_the_best_policys_evaluation(trained, tmp_path):

@@ -55,6 +55,9 @@ def test_smoke_hopper_outputs(tmp_path, teacher_dir):
     assert code["commit"] == head and isinstance(code["dirty"], bool) and code["torch_threads"] >= 1
     assert code["versions"]["torchrl"] == importlib.metadata.version("torchrl")
     assert len(read_scalar(run_dir, "eval/return")) == 3  # at 1000, 2000, 3000 frames
+    # one episode per evaluation (TINY): its return is also the minimum, and below the teacher's 1480.7
+    assert read_scalar(run_dir, "eval/min_return") == read_scalar(run_dir, "eval/return")
+    assert [value for _, value in read_scalar(run_dir, "eval/below_teacher")] == [1.0, 1.0, 1.0]
     for tag in [
         "train/dense_return",
         "teacher/threshold",

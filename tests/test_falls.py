@@ -50,6 +50,25 @@ def test_falls_of_both_actors_and_the_logs_before_them(tmp_path):
     assert "target actor's 1 falls against its 2 others" in text
 
 
+def test_the_share_of_episodes_below_the_teacher_at_each_actors_falls(tmp_path):
+    below_online = {20_000: 0.0, 30_000: 0.8, 40_000: 0.0, 50_000: 1.0}
+    below_target = {20_000: 0.0, 30_000: 0.1, 40_000: 0.0, 50_000: 0.6}
+    write_run(
+        tmp_path / "run",
+        [
+            *rows(),
+            *(("eval/below_teacher_online", f, v) for f, v in below_online.items()),
+            *(("eval/below_teacher", f, v) for f, v in below_target.items()),
+        ],
+    )
+    text = falls.report([tmp_path / "run"], window=10_000)
+    # online falls at 30k and 50k (0.8, 1.0) against 40k (0.0); the target's at 50k (0.6) against 30k, 40k
+    assert "(`eval/below_teacher`, not relative) | 0.9 (n=2) | 0 (n=1) | 0.6 (n=1) | 0.05 (n=2) |" in text
+    # a run that did not log it
+    write_run(tmp_path / "old", rows())
+    assert "not relative) | - | - | - | - |" in falls.report([tmp_path / "old"], window=10_000)
+
+
 def test_a_run_that_evaluated_the_online_actor_reads_its_target_actor_as_the_other(tmp_path):
     write_run(tmp_path / "run", rows("eval/return", "eval/return_target"), evaluated="online")
     line, _ = falls.run_rows(tmp_path / "run", window=10_000)

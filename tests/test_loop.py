@@ -15,7 +15,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "examples"))
 
 import loop  # noqa: E402
-from run_utils import RunCheckpoint, RunClock  # noqa: E402
+from run_utils import RunCheckpoint, RunClock, evaluation_metrics  # noqa: E402
 from tensordict.nn import TensorDictModule, TensorDictSequential  # noqa: E402
 from torchrl import timeit  # noqa: E402
 from torchrl.data import Bounded, LazyTensorStorage, TensorDictReplayBuffer  # noqa: E402
@@ -347,21 +347,42 @@ def test_evaluations_at_their_cadence_with_the_other_actor_and_videos(monkeypatc
     monkeypatch.setattr(
         loop,
         "record_evaluation",
-        lambda env, actor, loss, cfg, run, frames, teacher: evaluated.append((env, frames)) or 10.0,
+        lambda env, actor, loss, cfg, run, frames, teacher: evaluated.append((env, frames)) or {"eval/return": 10.0},
     )
     monkeypatch.setattr(
-        loop, "evaluate_actor", lambda env, actor, loss, which, episodes, steps: other.append((env, which)) or 20.0
+        loop,
+        "actor_returns",
+        lambda env, actor, loss, which, episodes, steps: other.append((env, which)) or [30.0, 10.0, 20.0],
     )
     cfg = SimpleNamespace(
         eval=SimpleNamespace(actor="target", every_frames=1000, video_every_frames=2000, episodes=3),
         env=SimpleNamespace(max_episode_steps=1000),
     )
     envs = {"evaluated": "e", "other": "o", "video": "v"}
-    evaluations = loop.Evaluations(cfg, None, None, {}, 0.0, envs, lambda env, actor, frames: videos.append(frames))
+    evaluations = loop.Evaluations(cfg, None, None, {}, 15.0, envs, lambda env, actor, frames: videos.append(frames))
     assert evaluations(0, 500) == {}
-    assert evaluations(500, 1000) == {"eval/return": 10.0, "eval/return_online": 20.0}
+    assert evaluations(500, 1000) == {
+        "eval/return": 10.0,
+        "eval/return_online": 20.0,
+        "eval/min_return_online": 10.0,
+        "eval/below_teacher_online": 1 / 3,  # 10 of (30, 10, 20) below the teacher's 15
+    }
     evaluations(1500, 2000)
     assert evaluated == [("e", 1000), ("e", 2000)] and other == [("o", "online")] * 2 and videos == [2000]
+
+
+def test_evaluation_metrics_of_an_evaluations_episodes():
+    assert evaluation_metrics([300.0, 100.0, 350.0, 250.0], teacher_return=200.0) == {
+        "eval/return": 250.0,
+        "eval/min_return": 100.0,
+        "eval/below_teacher": 0.25,
+    }
+    # equal to the teacher is not below it; the other actor's tags carry its suffix
+    assert evaluation_metrics([200.0, 199.0], teacher_return=200.0, suffix="_target") == {
+        "eval/return_target": 199.5,
+        "eval/min_return_target": 199.0,
+        "eval/below_teacher_target": 0.5,
+    }
 
 
 def test_run_clock_starts_the_timed_part_after_warmup():
