@@ -76,3 +76,19 @@ def test_rule_is_pending_until_every_run_is_there(tmp_path):
     text = rule.report([tmp_path])
     assert "- candidate: 1 runs missing (Walker2d-v4 shipped seed 3)" in text
     assert text.count("**Verdict: pending.**") == 2 and "MISSED" not in text
+    candidate, penalty = text.split("### penalty")
+    # the 39 cells both have; on Hopper and Walker2d 19 of them, 4 evaluations after the pass each
+    assert "on the 39 (env, teacher, seed) cells both the candidate and the defaults" in candidate
+    assert "- runs passing their teacher: 39 against the defaults' 39;" in candidate
+    assert "- fall share on Hopper and Walker2d: 0.0% (0/76) against the defaults' 25.0% (19/76);" in candidate
+    assert "- last-5 above the defaults' on 39 of 39 cells." in candidate  # 200 against 178
+    assert "- last-5 above the defaults' on 0 of 39 cells." in penalty  # 170 against 178
+
+
+def test_no_interim_line_without_a_cell_both_have(tmp_path):
+    (tmp_path / "trusted").mkdir(parents=True)
+    (tmp_path / "trusted" / "matrix.json").write_text("{}")
+    write_run(tmp_path, "paper-trusted", "Hopper-v4", "sail", 0, [50, 200, 200, 200, 200, 200], online=[50] * 6)
+    write_run(tmp_path, "paper", "Hopper-v4", "sail", 1, [50, 200, 200, 200, 200, 200])
+    text = rule.report([tmp_path])
+    assert "Interim" not in text and text.count("**Verdict: pending.**") == 2
