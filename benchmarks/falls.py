@@ -13,7 +13,7 @@ Then, pooled over the runs, each diagnostic averaged over the ``--window`` frame
 evaluation after the online actor's first pass, at each actor's falls against its other evaluations:
 ``actor/change`` and ``actor/target_gap`` (how far a TD3 block moves the actor, how far it is from
 the target actor), ``sail/q_mean``, ``sail/d_reward_mean``, ``train/dense_return`` and the
-trajectories promoted, each over its run's own mean after the pass, so that envs pool; and, where
+trajectories promoted, each as a z-score within its run, so that envs pool; and, where
 the run logged it, the share of the evaluation's episodes below the teacher (a fall of one episode
 in ten, or a collapse).
 """
@@ -83,12 +83,14 @@ def run_rows(folder: Path, window: int, given_teacher: float | None = None) -> t
     }
     first = next((f for f in frames if online[f] > teacher), None)
     after = [] if first is None else [f for f in frames if f > first]
+    # the target actor's falls count from its own first pass, as its fall share does
+    target_first = None if target is None else next((f for f in frames if target[f] > teacher), None)
     series = {tag: read_scalar(folder, tag) for tag in (*DIAGNOSTICS, PROMOTED)}
     rows = []
     for f in after:
         row = {
             "fell": online[f] < teacher,
-            "target_fell": None if target is None else target[f] < teacher,
+            "target_fell": None if target_first is None or f <= target_first else target[f] < teacher,
             "online_below": below["online"].get(f),
             "target_below": below["target"].get(f),
         }
@@ -102,8 +104,9 @@ def run_rows(folder: Path, window: int, given_teacher: float | None = None) -> t
         "passed_at": first,
         "online": share["online"],
         "target": share["target"],
-        "online_only": None if target is None else sum(r["fell"] and not r["target_fell"] for r in rows),
-        "target_only": None if target is None else sum(r["target_fell"] and not r["fell"] for r in rows),
+        # the evaluations where both actors are judged (each after its own first pass)
+        "online_only": None if target is None else sum(r["fell"] and r["target_fell"] is False for r in rows),
+        "target_only": None if target is None else sum(r["target_fell"] is True and not r["fell"] for r in rows),
     }
     return line, rows
 
@@ -116,22 +119,31 @@ def shown(share: dict | None) -> str:
 
 def mean_of(rows: list[dict], key: str) -> str:
     values = [row[key] for row in rows if row[key] is not None]
-    return f"{statistics.fmean(values):.4g} (n={len(values)})" if values else "-"
+    if not values:
+        return "-"
+    text = f"{statistics.fmean(values):.2f}".replace("-0.00", "0.00")  # a z-score mean of 0 up to rounding
+    return f"{text} (n={len(values)})"
 
 
-def relative(rows: list[dict]) -> list[dict]:
-    """``rows`` with each diagnostic (and ``promoted``) over its mean in these rows, so that runs of
-    different envs and scales pool: 1.0 is the run's own average after its pass (``None`` where the
-    mean is 0 or missing)."""
+def standardized(rows: list[dict]) -> list[dict]:
+    """``rows`` with each diagnostic (and ``promoted``) as a z-score within the run: its distance from
+    the run's mean over these rows in the run's standard deviations, so that runs of different envs,
+    scales and signs (a logit reward's negative Q) pool; 0 is the run's own average after its pass
+    (``None`` where the value is missing or the run's values do not vary)."""
     keys = (*DIAGNOSTICS, "promoted")
-    means = {}
+    moments = {}
     for key in keys:
         values = [row[key] for row in rows if row[key] is not None]
-        means[key] = statistics.fmean(values) if values else 0.0
-    return [
-        {**row, **{key: None if row[key] is None or not means[key] else row[key] / means[key] for key in keys}}
-        for row in rows
-    ]
+        spread = statistics.pstdev(values) if len(values) > 1 else 0.0
+        moments[key] = (statistics.fmean(values), spread) if spread > 0 else None
+
+    def z(key: str, value: float | None) -> float | None:
+        if value is None or moments[key] is None:
+            return None
+        mean, spread = moments[key]
+        return (value - mean) / spread
+
+    return [{**row, **{key: z(key, row[key]) for key in keys}} for row in rows]
 
 
 def report(folders: list[Path], window: int, given_teacher: float | None = None) -> str:
@@ -143,7 +155,7 @@ def report(folders: list[Path], window: int, given_teacher: float | None = None)
     pooled = []
     for folder in folders:
         line, rows = run_rows(folder, window, given_teacher)
-        pooled += relative(rows)
+        pooled += standardized(rows)
         lines.append(
             f"| `{line['run']}` | {line['teacher']:.1f} | {line['passed_at'] or '-'} | {shown(line['online'])} "
             f"| {shown(line['target'])} | {'-' if line['online_only'] is None else line['online_only']} "
@@ -158,9 +170,9 @@ def report(folders: list[Path], window: int, given_teacher: float | None = None)
         "",
         f"Over the {window}-frame window before each evaluation after the online actor passed: at the online "
         f"actor's {len(online_fell)} falls against its {len(online_held)} other evaluations, and at the target "
-        f"actor's {len(target_fell)} falls against its {len(target_held)} others (same evaluations, same windows). "
-        "Each value is over its run's own mean after the pass (1 = that run's average), so runs of different "
-        "envs pool.",
+        f"actor's {len(target_fell)} falls against its {len(target_held)} others after its own first pass (same "
+        "windows). Each value is a z-score within its run: its distance from the run's mean after the pass in "
+        "the run's standard deviations (0 = that run's average), so that runs of different envs pool.",
         "",
         "| diagnostic | before an online fall | before the online actor's others "
         "| before a target fall | before the target actor's others |",
@@ -172,7 +184,7 @@ def report(folders: list[Path], window: int, given_teacher: float | None = None)
         for key in (*DIAGNOSTICS, "promoted")
     ]
     lines.append(
-        f"| at the evaluation: share of its episodes below the teacher (`eval/below_teacher`, not relative) "
+        f"| at the evaluation: share of its episodes below the teacher (`eval/below_teacher`, not a z-score) "
         f"| {mean_of(online_fell, 'online_below')} | {mean_of(online_held, 'online_below')} "
         f"| {mean_of(target_fell, 'target_below')} | {mean_of(target_held, 'target_below')} |"
     )

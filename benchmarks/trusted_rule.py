@@ -10,7 +10,7 @@ runs' ``eval/return_online``: training does not depend on the evaluated actor) a
 (labels ``paper`` and ``shipped``, SAIL), with DAC (label ``paper``) beside them. Per run: whether
 an evaluation passed the teacher, the last-5 mean and the fall share
 (:func:`torchrl_sail.harness.fall_share`). The verdict is ``pending`` until every run the rule needs
-is finished; meanwhile an interim line compares each setting with the defaults on the cells both have.
+is finished; meanwhile an interim block compares each setting with the defaults on the cells both have.
 """
 
 from __future__ import annotations
@@ -97,7 +97,7 @@ def paper_mean(results: dict, env: str) -> tuple[float, float]:
     return statistics.fmean(values), statistics.stdev(values)
 
 
-def pooled_falls(results: dict, keys=None) -> tuple[int, int]:
+def pooled_falls(results: dict, keys: list[tuple[str, str, int]] | None = None) -> tuple[int, int]:
     """All falls over all counted evaluations of the Hopper and Walker2d runs (of ``keys`` alone if given)."""
     if keys is None:
         keys = [(env, teacher, seed) for env in FALL_ENVS for teacher in TEACHERS for seed in SEEDS]

@@ -26,7 +26,8 @@ import tqdm
 from config_schema import register_config_schema
 from run_utils import (
     EXAMPLES_DIR,
-    evaluate,
+    actor_returns,
+    evaluation_metrics,
     log_metrics,
     logger_states,
     make_loggers,
@@ -87,8 +88,10 @@ def main(cfg):  # noqa: F821
             log_metrics(loggers, {"bc/loss": out["loss_bc"]}, step + 1)  # x axis: BC steps
     if run["gradient_steps"] < steps:
         run["gradient_steps"], run["train_seconds"] = steps, time.time() - start
-        add_evaluation(run, 0, evaluate(env, actor, cfg.eval.episodes, cfg.env.max_episode_steps), teacher_return)
-        log_metrics(loggers, {"eval/return": run["evals"][0][1]}, 0)
+        returns = actor_returns(env, actor, None, "online", cfg.eval.episodes, cfg.env.max_episode_steps)
+        metrics = evaluation_metrics(returns, teacher_return)
+        add_evaluation(run, 0, metrics["eval/return"], teacher_return)
+        log_metrics(loggers, metrics, 0)
         if cfg.eval.video_every_frames:  # offline: the one evaluation (frame 0) gets the one video
             log_video(loggers, make_render_env(cfg, cfg.seed + 30_000, cfg.eval.video_size), actor, cfg, run_dir, 0)
         run["loggers"] = logger_states(loggers)

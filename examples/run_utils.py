@@ -145,9 +145,9 @@ def actor_returns(env, actor, loss, which: str, episodes: int, max_steps: int) -
 
 def evaluation_metrics(returns: list[float], teacher_return: float, suffix: str = "") -> dict:
     """An evaluation's logged figures from its episodes' returns: ``eval/return`` (their mean),
-    ``eval/min_return`` and ``eval/below_teacher``, the share of its episodes below the teacher's
-    return (a mean below it from one fallen episode reads 0.1 of 10, a collapse 1.0); each tag with
-    ``suffix`` (``"_online"``: the other actor's).
+    ``eval/min_return`` (the lowest episode's return) and ``eval/below_teacher``, the share of its
+    episodes below the teacher's return (one fallen episode in 10 reads 0.1, a collapse 1.0); each
+    tag with ``suffix`` (``"_online"`` or ``"_target"``: the other actor's).
 
     Examples:
         >>> evaluation_metrics([300.0, 100.0, 350.0, 250.0], teacher_return=200.0)

@@ -403,10 +403,9 @@ def test_target_actor_evaluation_swaps_the_weights_in_and_back():
     loss.target_actor_network_params.to_module(reference)
 
     env.set_seed(0)
-    swapped = actor_returns(env, actor, loss, "target", 2, 20)
+    swapped = sum(actor_returns(env, actor, loss, "target", 2, 20)) / 2
     env.set_seed(0)
-    assert sum(swapped) / 2 == evaluate(env, reference, 2, 20)
-    swapped = sum(swapped) / 2
+    assert swapped == evaluate(env, reference, 2, 20)
     env.set_seed(0)
     assert evaluate(env, actor, 2, 20) != swapped  # the actor's own weights are back
     after = TensorDict.from_module(actor).flatten_keys(".")

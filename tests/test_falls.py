@@ -43,10 +43,11 @@ def test_falls_of_both_actors_and_the_logs_before_them(tmp_path):
     assert [row["promoted"] for row in after] == [2, 0, 3]  # 3 - 1, 3 - 3, 6 - 3
     text = falls.report([tmp_path / "run"], window=10_000)
     assert "| 66.7% (2/3) | 33.3% (1/3) | 1 | 0 |" in text
-    # over the run's means (actor/change 0.5: 1.0, 0.2, 1.8; promoted 5/3: 1.2, 0, 1.8): online falls
-    # (30k, 50k) against 40k; the target's fall (50k) against 30k and 40k
-    assert "| `actor/change` | 1.4 (n=2) | 0.2 (n=1) | 1.8 (n=1) | 0.6 (n=2) |" in text
-    assert "| `promoted` | 1.5 (n=2) | 0 (n=1) | 1.8 (n=1) | 0.6 (n=2) |" in text
+    # z-scores within the run: actor/change (0.5, 0.1, 0.9) has mean 0.5 and standard deviation
+    # sqrt(0.32 / 3) = 0.3266, so (0, -1.225, 1.225); promoted (2, 0, 3): mean 5/3, sd sqrt(42 / 27) = 1.247,
+    # so (0.2673, -1.336, 1.069). Online falls (30k, 50k) against 40k; the target's fall (50k) against 30k, 40k
+    assert "| `actor/change` | 0.61 (n=2) | -1.22 (n=1) | 1.22 (n=1) | -0.61 (n=2) |" in text
+    assert "| `promoted` | 0.67 (n=2) | -1.34 (n=1) | 1.07 (n=1) | -0.53 (n=2) |" in text
     assert "target actor's 1 falls against its 2 others" in text
 
 
@@ -63,10 +64,38 @@ def test_the_share_of_episodes_below_the_teacher_at_each_actors_falls(tmp_path):
     )
     text = falls.report([tmp_path / "run"], window=10_000)
     # online falls at 30k and 50k (0.8, 1.0) against 40k (0.0); the target's at 50k (0.6) against 30k, 40k
-    assert "(`eval/below_teacher`, not relative) | 0.9 (n=2) | 0 (n=1) | 0.6 (n=1) | 0.05 (n=2) |" in text
+    assert "(`eval/below_teacher`, not a z-score) | 0.90 (n=2) | 0.00 (n=1) | 0.60 (n=1) | 0.05 (n=2) |" in text
     # a run that did not log it
     write_run(tmp_path / "old", rows())
-    assert "not relative) | - | - | - | - |" in falls.report([tmp_path / "old"], window=10_000)
+    assert "not a z-score) | - | - | - | - |" in falls.report([tmp_path / "old"], window=10_000)
+
+
+def test_the_target_actors_falls_count_from_its_own_first_pass(tmp_path):
+    online = {10_000: 150, 20_000: 40, 30_000: 160, 40_000: 170}
+    target = {10_000: 50, 20_000: 60, 30_000: 120, 40_000: 80}  # first above the teacher (100) at 30k
+    write_run(
+        tmp_path / "run",
+        [
+            *(("eval/return_online", f, v) for f, v in online.items()),
+            *(("eval/return", f, v) for f, v in target.items()),
+            *(("actor/change", f, v) for f, v in {15_000: 1.0, 25_000: 2.0, 35_000: 3.0}.items()),
+        ],
+    )
+    line, after = falls.run_rows(tmp_path / "run", window=10_000)
+    assert line["target"] == {"share": 1.0, "falls": 1, "evaluations": 1}  # 80 at 40k, after its pass at 30k
+    # 20k (60) and 30k (120) are before or at the target's pass: not judged, not falls
+    assert [row["target_fell"] for row in after] == [None, None, True]
+    assert (line["online_only"], line["target_only"]) == (0, 1)  # 20k, the online fall, has no target verdict
+    assert "target actor's 1 falls against its 0 others" in falls.report([tmp_path / "run"], window=10_000)
+
+
+def test_z_scores_pool_runs_of_other_scales_and_signs():
+    rows = [{**{key: None for key in falls.DIAGNOSTICS}, "promoted": 0.0} for _ in range(3)]
+    for row, value in zip(rows, (-30.0, -10.0, -20.0), strict=True):  # a logit reward's negative Q
+        row["sail/q_mean"] = value
+    z = [row["sail/q_mean"] for row in falls.standardized(rows)]
+    assert z == pytest.approx([-1.2247, 1.2247, 0.0], abs=1e-4)  # mean -20, sd sqrt(200 / 3) = 8.165
+    assert all(row["promoted"] is None and row["actor/change"] is None for row in falls.standardized(rows))
 
 
 def test_a_run_that_evaluated_the_online_actor_reads_its_target_actor_as_the_other(tmp_path):
@@ -86,7 +115,7 @@ def test_a_run_that_evaluated_the_online_actor_alone_has_no_target_figures(tmp_p
     assert line["online_only"] is None and [row["fell"] for row in after] == [True, False, True]
     text = falls.report([tmp_path / "run"], window=10_000)
     assert "| 66.7% (2/3) | n/a | - | - |" in text
-    assert "| `actor/change` | 1.4 (n=2) | 0.2 (n=1) | - | - |" in text
+    assert "| `actor/change` | 0.61 (n=2) | -1.22 (n=1) | - | - |" in text
 
 
 def test_a_run_that_evaluated_the_target_actor_alone_is_refused(tmp_path):

@@ -178,6 +178,9 @@ def test_bc_is_offline_and_skipped_when_finished(tmp_path, teacher_dir):
     evaluate(f"run_dir={run_dir}", "seed=10000", "episodes=1", f"out={tmp_path / 'eval.json'}")
     result = json.loads((tmp_path / "eval.json").read_text())
     assert result["dense_return"]["mean"] == pytest.approx(summary["final_eval_return"], rel=1e-6)
+    [(_, lowest)] = read_scalar(run_dir, "eval/min_return")  # one episode: its return is the minimum
+    assert lowest == pytest.approx(result["dense_return"]["min"], rel=1e-6)
+    assert read_scalar(run_dir, "eval/below_teacher") == [(0, 1.0)]  # 10 epochs: below the teacher's 1480.7
 
 
 def norm_count(run_dir) -> int:

@@ -92,3 +92,13 @@ def test_no_interim_line_without_a_cell_both_have(tmp_path):
     write_run(tmp_path, "paper", "Hopper-v4", "sail", 1, [50, 200, 200, 200, 200, 200])
     text = rule.report([tmp_path])
     assert "Interim" not in text and text.count("**Verdict: pending.**") == 2
+
+
+def test_interim_without_a_hopper_or_walker_cell_counts_no_falls(tmp_path):
+    (tmp_path / "trusted").mkdir(parents=True)
+    (tmp_path / "trusted" / "matrix.json").write_text("{}")
+    write_run(tmp_path, "paper-trusted", "Swimmer-v4", "sail", 0, [50, 200, 90, 200, 200, 200], online=[50] * 6)
+    write_run(tmp_path, "paper", "Swimmer-v4", "sail", 0, [50, 200, 200, 200, 200, 200])
+    text = rule.report([tmp_path])
+    assert "- fall share on Hopper and Walker2d: n/a (0 counted) against the defaults' n/a (0 counted);" in text
+    assert "- last-5 above the defaults' on 0 of 1 cells." in text  # 178 against 200
