@@ -85,20 +85,21 @@ def test_rule_is_pending_until_every_run_is_there(tmp_path):
     assert "- last-5 above the defaults' on 0 of 39 cells." in penalty  # 170 against 178
 
 
+def candidate_and_default(root, env, default_seed) -> str:
+    """The rule's report on one candidate run (seed 0, falls once after passing) and one default run."""
+    (root / "trusted").mkdir(parents=True)
+    (root / "trusted" / "matrix.json").write_text("{}")
+    write_run(root, "paper-trusted", env, "sail", 0, [50, 200, 90, 200, 200, 200], online=[50] * 6)
+    write_run(root, "paper", env, "sail", default_seed, [50, 200, 200, 200, 200, 200])
+    return rule.report([root])
+
+
 def test_no_interim_line_without_a_cell_both_have(tmp_path):
-    (tmp_path / "trusted").mkdir(parents=True)
-    (tmp_path / "trusted" / "matrix.json").write_text("{}")
-    write_run(tmp_path, "paper-trusted", "Hopper-v4", "sail", 0, [50, 200, 200, 200, 200, 200], online=[50] * 6)
-    write_run(tmp_path, "paper", "Hopper-v4", "sail", 1, [50, 200, 200, 200, 200, 200])
-    text = rule.report([tmp_path])
+    text = candidate_and_default(tmp_path, "Hopper-v4", default_seed=1)
     assert "Interim" not in text and text.count("**Verdict: pending.**") == 2
 
 
 def test_interim_without_a_hopper_or_walker_cell_counts_no_falls(tmp_path):
-    (tmp_path / "trusted").mkdir(parents=True)
-    (tmp_path / "trusted" / "matrix.json").write_text("{}")
-    write_run(tmp_path, "paper-trusted", "Swimmer-v4", "sail", 0, [50, 200, 90, 200, 200, 200], online=[50] * 6)
-    write_run(tmp_path, "paper", "Swimmer-v4", "sail", 0, [50, 200, 200, 200, 200, 200])
-    text = rule.report([tmp_path])
+    text = candidate_and_default(tmp_path, "Swimmer-v4", default_seed=0)
     assert "- fall share on Hopper and Walker2d: n/a (0 counted) against the defaults' n/a (0 counted);" in text
     assert "- last-5 above the defaults' on 0 of 1 cells." in text  # 178 against 200
