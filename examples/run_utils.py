@@ -3,6 +3,7 @@ and the run's summary (the run folder's life cycle itself is :mod:`torchrl_sail.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import random
 import time
@@ -136,10 +137,11 @@ def actor_returns(env, actor, loss, which: str, episodes: int, max_steps: int) -
     """Dense returns of deterministic episodes of the actor ``which`` names: ``"online"`` (``actor``
     itself) or ``"target"`` (the loss's target actor, whose weights stand in ``actor``'s for the
     episodes, then ``actor``'s own come back)."""
-    if str(which) != "target":
-        return [e["dense_return"] for e in evaluate_episodes(env, actor, episodes, max_steps)]
-    # preserve_module_state=False: the loss's target tensors stay the buffers it saves and updates
-    with loss.target_actor_network_params.to_module(actor, preserve_module_state=False):
+    weights = contextlib.nullcontext()
+    if str(which) == "target":
+        # preserve_module_state=False: the loss's target tensors stay the buffers it saves and updates
+        weights = loss.target_actor_network_params.to_module(actor, preserve_module_state=False)
+    with weights:
         return [e["dense_return"] for e in evaluate_episodes(env, actor, episodes, max_steps)]
 
 
