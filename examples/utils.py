@@ -85,9 +85,10 @@ def env_device(cfg: DictConfig) -> str | None:
     return None if torch.device(cfg.device).type == "cpu" else cfg.device
 
 
-def make_env(cfg: DictConfig, seed: int, *, render_size=None):
-    """The run's env, seeded; ``render_size=(width, height)`` also renders ``"pixels"`` (videos)."""
-    env = make_sail_env(
+def env_factory(cfg: DictConfig, *, render_size=None) -> partial:
+    """The run's env constructor, unseeded: one recipe for this process's envs and the workers'."""
+    return partial(
+        make_sail_env,
         cfg.env.name,
         max_episode_steps=cfg.env.max_episode_steps,
         rounding=str(cfg.env.reward_rounding),
@@ -97,6 +98,11 @@ def make_env(cfg: DictConfig, seed: int, *, render_size=None):
         normalized_observation_key=normalized_observation_key(cfg),
         env_kwargs=env_kwargs(cfg),
     )
+
+
+def make_env(cfg: DictConfig, seed: int, *, render_size=None):
+    """The run's env, seeded; ``render_size=(width, height)`` also renders ``"pixels"`` (videos)."""
+    env = env_factory(cfg, render_size=render_size)()
     env.set_seed(seed)
     return env
 
@@ -116,14 +122,7 @@ def make_collector(cfg: DictConfig, env, policy, *, frames: int):
         }
         # Workers build their own env (seeded below) from the installed package, so remote
         # workers (Ray actors) need torchrl_sail installed but not this examples/ folder.
-        env = partial(
-            make_sail_env,
-            cfg.env.name,
-            max_episode_steps=cfg.env.max_episode_steps,
-            absorbing_state=cfg.algo.absorbing_state,
-            device=env_device(cfg),
-            env_kwargs=env_kwargs(cfg),
-        )
+        env = env_factory(cfg)
     collector = Collector(
         env,
         policy,

@@ -322,6 +322,32 @@ def test_reward_rounding_reaches_the_env_and_the_demonstrations(rounding):
     assert float(reward[-1]) == pytest.approx(expected, rel=1e-5, abs=1e-6)
 
 
+def test_collector_workers_build_the_env_with_the_runs_settings(monkeypatch):
+    import utils
+
+    cfg = make("env=Hopper-v4", "env.reward_rounding=none", "collector.num_workers=2")
+    seen = {}
+
+    class Collector:  # records what TorchRL's Collector would receive, without starting workers
+        def __init__(self, env, policy, **kwargs):
+            seen.update(env=env, kwargs=kwargs)
+
+        def set_seed(self, seed):
+            seen["seed"] = seed
+
+    monkeypatch.setattr(utils, "Collector", Collector)
+    utils.make_collector(cfg, None, None, frames=500)
+    assert seen["kwargs"]["num_collectors"] == 2 and seen["seed"] == cfg.seed + 500
+    # the workers' env: the rounding, the observation key and every other setting of this process's env
+    assert seen["env"].keywords == utils.env_factory(cfg).keywords
+    assert seen["env"].keywords["rounding"] == "none"
+    worker_env = seen["env"]()
+    try:
+        assert worker_env.transform[-1].rounding == "none"
+    finally:
+        worker_env.close()
+
+
 def test_flush_denormal_reaches_torch():
     import torch
     from run_utils import set_cpu_math
