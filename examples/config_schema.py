@@ -107,7 +107,7 @@ class RewardConfig:
     # negative where D says agent (the weak-teacher candidate, docs/training.md); ours, not the authors'
     shift: float = 0.0
     coef: float = 1.0  # weight of D's reward
-    # learner=ppo: coef *= coef_decay after every on-policy batch (POfD's lambda_1 schedule)
+    # learner=ppo: coef *= coef_decay after every on-policy batch (this repo's option; POfD's lambda_1 is constant here)
     coef_decay: float = 1.0
 
 
@@ -145,10 +145,15 @@ class PPOConfig:
 
 @dataclass
 class SACConfig:
-    """learner=sac: TorchRL's SACLoss (the TD3 settings lr, gamma, tau, batch apply)."""
+    """learner=sac: TorchRL's SACLoss (the TD3 settings lr, gamma, tau, batch apply).
 
-    alpha_init: float = 1.0  # initial entropy temperature (TorchRL's default)
-    alpha_lr: float = 3.0e-4  # its Adam (TorchRL's sota SAC)
+    The SAIL authors' SAC (hyperparams/sac.yml, Hopper-v2 and HalfCheetah-v2) fixes the entropy
+    temperature at 0.01; TorchRL's sota SAC learns it from 1.0 (fixed_alpha=false, alpha_init=1.0).
+    """
+
+    fixed_alpha: bool = True  # the authors'; false: learned towards TorchRL's target entropy -dim(A)
+    alpha_init: float = 0.01  # the temperature (fixed), or its initial value (learned)
+    alpha_lr: float = 3.0e-4  # the learned temperature's Adam (TorchRL's sota SAC)
 
 
 @dataclass
@@ -721,6 +726,12 @@ def _check_algo_nstep(cfg: DictConfig) -> None:
                 ),
                 "the n-step loss (DDPGfD) needs algo.learner=td3, algo.reward.source=env, algo.rnd=null, "
                 "algo.adaptive=false and algo.absorbing_state=false",
+            ),
+            (
+                "algo.sac.alpha_init",
+                a.sac.alpha_init,
+                0 < a.sac.alpha_init < math.inf,
+                "must be a finite number > 0 (SAC's entropy temperature; its log is stored)",
             ),
             (
                 "algo.l2_coef",

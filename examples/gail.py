@@ -84,6 +84,13 @@ def pofd_lambda(coef: float, decay: float, iteration: int) -> float:
     return coef * decay**iteration
 
 
+def ppo_updates(total_frames: int, frames_per_batch: int, epochs: int, minibatch_size: int) -> int:
+    """Every PPO update of the budget, over which TorchRL anneals: batches x epochs x minibatches per
+    epoch. TorchRL's ``Collector`` rounds the budget up to whole batches, and so does the count:
+    the last batch trains at a learning rate above 0."""
+    return math.ceil(total_frames / frames_per_batch) * epochs * math.ceil(frames_per_batch / minibatch_size)
+
+
 def lr_factor(updates_done: int, total_updates: int) -> float:
     """TorchRL's PPO annealing: ``1 - updates_done / total_updates``, floored at 0 (a run extended past its budget)."""
     return max(0.0, 1.0 - updates_done / total_updates)
@@ -128,10 +135,7 @@ def main(cfg):  # noqa: F821
         sampler=SamplerWithoutReplacement(),
         batch_size=p.minibatch_size,
     )
-    # TorchRL anneals over every PPO update of the budget: batches x epochs x minibatches per epoch
-    total_updates = (
-        (cfg.collector.total_frames // p.frames_per_batch) * p.epochs * math.ceil(p.frames_per_batch / p.minibatch_size)
-    )
+    total_updates = ppo_updates(cfg.collector.total_frames, p.frames_per_batch, p.epochs, p.minibatch_size)
     observation_norm = observation_normalizer(env)  # None with algo.ppo.normalize_observations=false
 
     run = make_run(cfg)

@@ -533,6 +533,7 @@ def make_losses(cfg: DictConfig, actor, critic, discriminator, action_spec):
             num_qvalue_nets=2,
             loss_function=o.loss_function,
             alpha_init=cfg.algo.sac.alpha_init,
+            fixed_alpha=cfg.algo.sac.fixed_alpha,
             action_spec=action_spec,
         )
         share = TeacherShare(a.initial)
@@ -578,7 +579,7 @@ def make_optimizers(cfg: DictConfig, loss, discriminator, rnd: RNDReward | None 
     }
     if rnd is not None:
         optimizers["rnd"] = adam(rnd.predictor_network.parameters(), lr=cfg.algo.rnd.lr)
-    if cfg.algo.learner == "sac":  # SAC's entropy temperature
+    if cfg.algo.learner == "sac" and not cfg.algo.sac.fixed_alpha:  # SAC's learned entropy temperature
         optimizers["alpha"] = adam([loss.log_alpha], lr=cfg.algo.sac.alpha_lr)
     return optimizers
 
@@ -604,7 +605,7 @@ def make_update(cfg: DictConfig, loss, optimizers: dict, target_updater):
             td_error=cfg.algo.per is not None,  # DDPGfD's priorities start from each row's delta^2
             **nstep_kwargs,
         )
-    steps = [optimizers[name] for name in ("critic", "actor", "alpha")]
+    steps = [optimizers[name] for name in ("critic", "actor", "alpha") if name in optimizers]
 
     def sac_update(batch, update_actor: bool) -> dict:  # noqa: ARG001 (SAC updates its actor every step)
         out = loss(batch)

@@ -511,3 +511,30 @@ def test_envs_and_seeds_keep_only_their_cells(tmp_path, capsys):
     with pytest.raises(SystemExit):
         campaign.main([*args, "--envs", "Humanoid-v4", "--dry-run"])
     assert "invalid choice: 'Humanoid-v4'" in capsys.readouterr().err
+
+
+def test_every_planned_run_composes_a_valid_config_and_baselines_keep_their_references(tmp_path):
+    """Each distinct (method, env, overrides) of every stage passes the scripts' config checks, so a
+    queue never stops on a config error hours in; and a default changed for SAIL never reaches the
+    baselines, which keep the settings of the references they are named after."""
+    import sys
+
+    from hydra import compose, initialize_config_dir
+
+    sys.path.insert(0, str(campaign.REPO / "examples"))
+    from config_schema import check_config, register_config_schema
+
+    register_config_schema()
+    runs = {}
+    for cell in campaign.plan():
+        args = campaign.command(cell, tmp_path, tmp_path / "teacher.npz")[2:-1]  # no script, no run folder
+        # seeds and budgets (args 2-3) change no check
+        runs.setdefault(tuple(args[:2] + args[4:]), (cell, args))
+    assert len(runs) > 50
+    baselines = {"dac", "dac_published", "ddpgfd", "td3_delayed", "gail", "pofd", "bc"}
+    with initialize_config_dir(config_dir=str(campaign.REPO / "conf"), version_base="1.3"):
+        for cell, args in runs.values():
+            cfg = compose(config_name="config", overrides=list(args))
+            check_config(cfg)
+            if cell.method in baselines:
+                assert cfg.optim.actor_preactivation_coef == 0 and cfg.eval.actor == "online", cell

@@ -348,6 +348,25 @@ def test_collector_workers_build_the_env_with_the_runs_settings(monkeypatch):
         worker_env.close()
 
 
+def test_ant_observes_its_contact_forces_without_paying_for_them():
+    import numpy as np
+    from utils import make_env
+
+    env = make_env(make("env=Ant-v4"), seed=0)
+    try:
+        assert env.observation_spec["observation"].shape[-1] == 111 + 1  # the teacher's columns + time
+        ant = env.base_env._env.unwrapped
+        ant.reset(seed=0)
+        for _ in range(30):  # the legs reach the floor: contact forces the observation carries
+            ant.step(np.zeros(8))
+        # Ant-v2 (the teacher's) charged nothing for them: nor does Ant-v4 with the config's weight
+        assert np.abs(ant.contact_forces).sum() > 0 and ant.contact_cost == 0.0
+        _, reward, *_, info = ant.step(np.zeros(8))
+        assert reward == pytest.approx(info["reward_forward"] + ant.healthy_reward)  # zero action: no control cost
+    finally:
+        env.close()
+
+
 def test_flush_denormal_reaches_torch():
     import torch
     from run_utils import set_cpu_math
@@ -463,6 +482,32 @@ def test_evaluations_act_with_the_td3_actor_as_one_module():
     assert episode["dense_return"] == float(reference["next", "episode_return"][-1])
     sac_actor = make_agent(make("algo=sail_sac"), env)[0]
     assert one_module_policy(sac_actor) is sac_actor
+
+
+@pytest.mark.parametrize("fixed", [True, False])
+def test_sac_temperature_fixed_as_the_authors_or_learned(fixed):
+    import torch
+    from utils import make_agent, make_discriminator, make_losses, make_optimizers
+
+    from torchrl_sail import make_sail_env
+
+    cfg = make("algo=sail_sac", *([] if fixed else ["algo.sac.fixed_alpha=false", "algo.sac.alpha_init=1.0"]))
+    check_config(cfg)
+    assert cfg.network.actor_cells == [256, 256] == cfg.network.critic_cells  # the authors' CustomSACPolicy
+    assert make("algo=sail_sac", "env=HalfCheetah-v4").optim.tau == 0.01 and cfg.optim.tau == 0.005
+    env = make_sail_env("Pendulum-v1", max_episode_steps=200)
+    actor, critic, _ = make_agent(cfg, env)
+    discriminator = make_discriminator(cfg, env)
+    loss = make_losses(cfg, actor, critic, discriminator, env.action_spec)[0]
+    optimizers = make_optimizers(cfg, loss, discriminator)
+    # the authors' 0.01, a buffer no optimizer steps; learned: a parameter from TorchRL's 1.0 with its Adam
+    assert float(loss.log_alpha.exp()) == pytest.approx(0.01 if fixed else 1.0)
+    assert isinstance(loss.log_alpha, torch.nn.Parameter) is (not fixed) and ("alpha" in optimizers) is (not fixed)
+
+
+def test_sac_temperature_must_be_positive():
+    with pytest.raises(ValueError, match=r"algo.sac.alpha_init=0.0: must be a finite number > 0"):
+        check_config(make("algo=sail_sac", "algo.sac.alpha_init=0"))
 
 
 def test_actor_preactivation_coef_reaches_the_loss():

@@ -80,6 +80,23 @@ def test_probabilities_weights_and_tags_follow_the_priorities():
     assert torch.allclose(batch["priority_weight"], expected[position])
 
 
+def test_a_batch_draws_one_row_per_equal_range_of_the_total_priority():
+    # the teacher's 2 rows hold half the total: stratified draws put exactly half of every batch
+    # there, where independent draws would vary (4 rows: 2 teacher rows in only 6 of 16 orderings)
+    rb, _, _ = make(alpha=1.0, beta=1.0, eps=1e-9)
+    rb.update_priority(torch.arange(5), torch.tensor([3.0, 3.0, 2.0, 2.0, 2.0]))
+    torch.manual_seed(0)
+    for batch_size in (2, 4, 8):
+        for _ in range(50):
+            batch = rb.sample(batch_size)
+            assert int(batch["is_teacher"].sum()) == batch_size // 2
+            assert batch["index"].tolist() == sorted(batch["index"].tolist())
+    # the i-th draw falls in [i, i + 1) * total / batch_size: with 5 equal priorities and a batch
+    # of 5, each row exactly once
+    rb.update_priority(torch.arange(5), torch.ones(5))
+    assert rb.sample(5)["index"].tolist() == [0, 1, 2, 3, 4]
+
+
 def test_rows_enter_at_the_largest_priority_so_far_and_ring_overwrites_reenter():
     rb, _, agent = make(n_teacher=1, n_agent=2, capacity=4, alpha=1.0, eps=1e-6)
     leaves = rb.state_dict()["leaves"]

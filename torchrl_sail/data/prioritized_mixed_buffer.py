@@ -84,7 +84,8 @@ class PrioritizedMixedReplayBuffer:
     """Draws batches from a fixed teacher buffer and an agent buffer by prioritized replay over both.
 
     Each stored row ``i`` has a priority ``p_i``; a batch draws ``batch_size`` rows with
-    replacement, row ``i`` with probability ``P(i) = v_i / sum_k v_k``, ``v_i = (p_i + eps +
+    replacement, one in each of ``batch_size`` equal ranges of the total priority (PER's
+    stratified draw), row ``i`` with probability ``P(i) = v_i / sum_k v_k``, ``v_i = (p_i + eps +
     teacher_eps [i is a teacher row]) ** alpha``, and carries the importance weight
     ``w_i = (N P(i)) ** -beta / max_k (N P(k)) ** -beta = (v_i / min_k v_k) ** -beta`` (``N``
     the rows stored) under ``"priority_weight"``, where TorchRL's losses read it. A row enters
@@ -226,8 +227,12 @@ class PrioritizedMixedReplayBuffer:
             )
         self._drop_unstored()
         tree = self._tree
-        # torch's generator, seeded and checkpointed with the rest of the run
-        position = np.sort(tree.find(torch.rand(batch_size, dtype=torch.float64).numpy() * tree.total, len(self)))
+        # Stratified, as PER's proportional variant (Schaul et al. 2016, Appendix B.2.1): one mass in
+        # each of batch_size equal ranges of the total, so each row keeps its probability P(i) and a
+        # batch's teacher share varies less than with independent draws. Increasing masses give
+        # sorted positions: teacher rows first. torch's generator: seeded and checkpointed with the run.
+        strata = torch.arange(batch_size, dtype=torch.float64) + torch.rand(batch_size, dtype=torch.float64)
+        position = tree.find((strata * (tree.total / batch_size)).numpy(), len(self))
         weight = torch.as_tensor((tree.leaves(position) / tree.minimum) ** -self.beta, dtype=torch.float32)
         position = torch.as_tensor(position)
         is_teacher = position < self.num_teacher
