@@ -294,7 +294,7 @@ class TD3Block:
             if step == 0 and self.drift is not None:
                 self.drift.start(batch)
             if drawn is not None:
-                drawn.append(batch.select(("next", "reward"), "is_teacher"))
+                drawn.append(batch.select(("next", "reward"), "is_teacher", "priority_weight"))
             self.gradient_steps += 1
             update_actor = (
                 self.gradient_steps % self.policy_delay == 0 and self.gradient_steps >= self.actor_updates_after
@@ -305,6 +305,8 @@ class TD3Block:
             drawn = torch.stack(drawn)
             metrics[self.reward_tag] = drawn["next", "reward"].mean()
             metrics["sail/teacher_share"] = drawn["is_teacher"].float().mean()
+            # PER's weights scale the losses (weight_normalization=count), not the L2 term beside them
+            metrics["sail/priority_weight_mean"] = drawn["priority_weight"].mean()
         metrics.update({f"sail/{key}": value for key, value in last.items()})
         if self.drift is not None:
             metrics.update(self.drift.measure())

@@ -56,6 +56,8 @@ def test_td3_baselines_run(tmp_path, teacher_dir, algo):
         assert read_scalar(run_dir, "sail/loss_qvalue_nstep")
         shares = [share for _, share in read_scalar(run_dir, "sail/teacher_share")]
         assert shares and all(0 < share < 1 for share in shares)  # the priorities' share, not a fixed half
+        weights = [weight for _, weight in read_scalar(run_dir, "sail/priority_weight_mean")]
+        assert len(weights) == len(shares) and all(0 < weight <= 1 for weight in weights)  # (v_i / min v)^-beta
         # one priority per demonstration row (425) and stored agent row, set by the steps
         leaves = saved(run_dir, "replay_priorities")["replay_priorities"]["leaves"]
         assert leaves.shape == (425 + 2000 - 10,) and leaves.unique().numel() > 100
