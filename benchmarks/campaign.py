@@ -278,7 +278,10 @@ def plan() -> list[Cell]:
             for method in ("sail", "dac")
         ]
     # The paper's comparison, after the trusted default is decided (its SAIL rows use the default of
-    # the commit they run from): the 300k rows seed by seed, then Table 1 at 1M.
+    # the commit they run from): the 300k rows seed by seed, then Table 1 at 1M. It runs no SAIL 300k
+    # row of its own: the variants compare with the main stage's SAIL runs, or, if the trusted stage
+    # replaces the defaults, with that stage's paper-teacher runs of the new default (aggregate.py's
+    # paper-comparison block must then read those).
     for seed in COMPARISON_SEEDS:
         cells += [Cell("comparison", env, method, seed, 300_000) for env in ENVS for method in COMPARISON_METHODS]
         cells += [Cell("comparison", env, method, seed, 300_000) for env in ABLATION_ENVS for method in ABLATIONS]
