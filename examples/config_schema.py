@@ -669,13 +669,19 @@ def _check_ppo(cfg: DictConfig) -> None:
 
 
 def _check_algo(cfg: DictConfig) -> None:
-    """``algo.*`` but its PPO, n-step and reward settings: BC's, and what RND and absorbing states need."""
+    """``algo.*`` but its PPO, n-step and reward settings: BC's, SAC's, and what RND and absorbing states need."""
     a = cfg.algo
     _check(
         [
             _at_least("algo.bc.epochs", a.bc.epochs, 1),
             _at_least("algo.bc.batch_size", a.bc.batch_size, 1),
             ("algo.bc.lr", a.bc.lr, a.bc.lr > 0, "must be > 0"),
+            (
+                "algo.sac.alpha_init",
+                a.sac.alpha_init,
+                0 < a.sac.alpha_init < math.inf,
+                "must be a finite number > 0 (SAC's entropy temperature; its log is stored)",
+            ),
             (
                 "algo.rnd",
                 a.rnd,
@@ -726,12 +732,6 @@ def _check_algo_nstep(cfg: DictConfig) -> None:
                 ),
                 "the n-step loss (DDPGfD) needs algo.learner=td3, algo.reward.source=env, algo.rnd=null, "
                 "algo.adaptive=false and algo.absorbing_state=false",
-            ),
-            (
-                "algo.sac.alpha_init",
-                a.sac.alpha_init,
-                0 < a.sac.alpha_init < math.inf,
-                "must be a finite number > 0 (SAC's entropy temperature; its log is stored)",
             ),
             (
                 "algo.l2_coef",

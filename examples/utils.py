@@ -587,7 +587,7 @@ def make_optimizers(cfg: DictConfig, loss, discriminator, rnd: RNDReward | None 
 def make_update(cfg: DictConfig, loss, optimizers: dict, target_updater):
     """One gradient step ``update(batch, update_actor) -> metrics``: TD3's fused implementation or
     the loss's own (``optim.implementation=loss``); for SAC, TorchRL's ``SACLoss`` as its sota script
-    steps it (actor, critics and temperature every step, then the targets)."""
+    steps it (actor, critics and a learned temperature every step, then the targets)."""
     if cfg.algo.learner != "sac":
         # DAC's masked actor is not the fused step's MLP + tanh: it runs the loss's own step
         implementation = "loss" if masks_absorbing_actions(cfg) else cfg.optim.implementation
@@ -606,6 +606,7 @@ def make_update(cfg: DictConfig, loss, optimizers: dict, target_updater):
             **nstep_kwargs,
         )
     steps = [optimizers[name] for name in ("critic", "actor", "alpha") if name in optimizers]
+    learned_temperature = "alpha" in optimizers
 
     def sac_update(batch, update_actor: bool) -> dict:  # noqa: ARG001 (SAC updates its actor every step)
         out = loss(batch)
@@ -615,13 +616,15 @@ def make_update(cfg: DictConfig, loss, optimizers: dict, target_updater):
             optimizer.zero_grad(set_to_none=True)
         target_updater.step()
         # SAC's alpha is its entropy temperature; "alpha" in the logs is SAIL's teacher share
-        return {
+        metrics = {
             "loss_qvalue": out["loss_qvalue"].detach(),
             "loss_actor": out["loss_actor"].detach(),
-            "loss_temperature": out["loss_alpha"].detach(),
             "temperature": out["alpha"].detach(),
             "entropy": out["entropy"].detach(),
         }
+        if learned_temperature:
+            metrics["loss_temperature"] = out["loss_alpha"].detach()
+        return metrics
 
     return sac_update
 

@@ -338,14 +338,15 @@ def test_collector_workers_build_the_env_with_the_runs_settings(monkeypatch):
     monkeypatch.setattr(utils, "Collector", Collector)
     utils.make_collector(cfg, None, None, frames=500)
     assert seen["kwargs"]["num_collectors"] == 2 and seen["seed"] == cfg.seed + 500
-    # the workers' env: the rounding, the observation key and every other setting of this process's env
-    assert seen["env"].keywords == utils.env_factory(cfg).keywords
-    assert seen["env"].keywords["rounding"] == "none"
-    worker_env = seen["env"]()
+    # the workers' env is this process's: the same transforms, rounding included, and the same specs
+    worker_env, own_env = seen["env"](), utils.make_env(cfg, seed=0)
     try:
-        assert worker_env.transform[-1].rounding == "none"
+        assert worker_env.transform[-1].rounding == own_env.transform[-1].rounding == "none"
+        assert [type(t) for t in worker_env.transform] == [type(t) for t in own_env.transform]
+        assert worker_env.observation_spec == own_env.observation_spec
     finally:
         worker_env.close()
+        own_env.close()
 
 
 def test_ant_observes_its_contact_forces_without_paying_for_them():
@@ -501,7 +502,7 @@ def test_sac_temperature_fixed_as_the_authors_or_learned(fixed):
     loss = make_losses(cfg, actor, critic, discriminator, env.action_spec)[0]
     optimizers = make_optimizers(cfg, loss, discriminator)
     # the authors' 0.01, a buffer no optimizer steps; learned: a parameter from TorchRL's 1.0 with its Adam
-    assert float(loss.log_alpha.exp()) == pytest.approx(0.01 if fixed else 1.0)
+    assert loss.log_alpha.detach().exp().item() == pytest.approx(0.01 if fixed else 1.0)
     assert isinstance(loss.log_alpha, torch.nn.Parameter) is (not fixed) and ("alpha" in optimizers) is (not fixed)
 
 
@@ -648,6 +649,12 @@ def test_actor_drift_measures_the_blocks_change_and_the_target_gap():
 
 def test_dac_published_trains_after_each_episode_d_first_and_gail_has_torchrls_discriminator():
     dac = make("algo=dac_published")
+    # per-(method, env) files: the release's replay never evicts; the SAIL authors' DAC on Ant, [64, 64]
+    assert make("algo=dac_published", "env=Swimmer-v5").env.replay_size == 1_000_000
+    assert make("algo=dac", "env=Swimmer-v4").env.replay_size == 10_000
+    ant = make("algo=dac", "env=Ant-v4").network
+    assert ant.actor_cells == [64, 64] == ant.critic_cells
+    assert make("algo=sail", "env=Ant-v4").network.actor_cells == [400, 300]
     assert (dac.optim.cadence, dac.optim.block_order, dac.optim.start_frames) == (
         "episodes",
         "discriminator_first",

@@ -126,7 +126,7 @@ def test_pofd_lambda_and_lr_schedules():
     assert (r.source, r.kind, r.coef, r.coef_decay, cfg.algo.learner) == ("shaped", "gail", 0.1, 1.0, "ppo")
     assert pofd_lambda(r.coef, r.coef_decay, 1_000_000 // 2048 - 1) == 0.1  # the last batch of 1M frames
     # TorchRL's PPO lr: 1 - done / all updates, floored at 0
-    # a 300k budget is 147 batches of 2048 (TorchRL's Collector rounds 146.5 up), 32 minibatches of 64
+    # a 300k budget is 147 batches of 2048 (TorchRL's Collector rounds 146.48 up), 32 minibatches of 64
     assert ppo_updates(300_000, 2048, 10, 64) == 147 * 10 * 32 and ppo_updates(2048, 512, 10, 64) == 320
     assert lr_factor(147 * 320 - 1, ppo_updates(300_000, 2048, 10, 64)) > 0  # the last update's
     assert lr_factor(0, 320) == 1.0 and lr_factor(319, 320) == pytest.approx(1 / 320) and lr_factor(400, 320) == 0.0

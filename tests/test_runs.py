@@ -218,6 +218,15 @@ def test_restore_refuses_any_change_of_the_envs_kwargs(tmp_path, saved_kwargs, k
         restore_run(checkpoint, tmp_path / "run", run, config=config)
 
 
+def test_restore_refuses_a_checkpoint_holding_state_this_run_would_drop(tmp_path):
+    saved_run(tmp_path / "run")  # run, layer, optim
+    run, layer, _, _ = fresh()
+    before = layer.weight.detach().clone()
+    with pytest.raises(ValueError, match=r"holds \['optim'\], which this run does not keep"):
+        restore_run(Checkpoint(run=run, layer=layer), tmp_path / "run", run)
+    assert torch.equal(layer.weight, before)  # refused before the weights load (only the run dict, to check it)
+
+
 def test_restore_without_or_with_a_damaged_checkpoint(tmp_path):
     run, _, _, checkpoint = fresh()
     with pytest.raises(FileNotFoundError, match="resume=true but there is no checkpoint at"):

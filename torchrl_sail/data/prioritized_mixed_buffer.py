@@ -85,8 +85,9 @@ class PrioritizedMixedReplayBuffer:
 
     Each stored row ``i`` has a priority ``p_i``; a batch draws ``batch_size`` rows with
     replacement, one in each of ``batch_size`` equal ranges of the total priority (PER's
-    stratified draw), row ``i`` with probability ``P(i) = v_i / sum_k v_k``, ``v_i = (p_i + eps +
-    teacher_eps [i is a teacher row]) ** alpha``, and carries the importance weight
+    stratified draw), so that row ``i`` is drawn ``batch_size * P(i)`` times on average,
+    ``P(i) = v_i / sum_k v_k``, ``v_i = (p_i + eps + teacher_eps [i is a teacher row]) ** alpha``,
+    and carries the importance weight
     ``w_i = (N P(i)) ** -beta / max_k (N P(k)) ** -beta = (v_i / min_k v_k) ** -beta`` (``N``
     the rows stored) under ``"priority_weight"``, where TorchRL's losses read it. A row enters
     with the largest priority given so far (1 before any), as in TorchRL's

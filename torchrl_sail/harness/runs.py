@@ -420,8 +420,8 @@ def restore_run(
     Raises:
         FileNotFoundError: no ``manifest.json`` in the checkpoint folder.
         ValueError: an unreadable checkpoint, one written by another env, algo, seed or teacher,
-            or a config change outside ``may_change`` (each such key named with its saved and
-            its new value).
+            a config change outside ``may_change`` (each such key named with its saved and
+            its new value), or a checkpoint holding components ``checkpoint`` lacks (named).
     """
     path = checkpoint_dir(run_dir)
     if not (path / "manifest.json").exists():
@@ -450,6 +450,13 @@ def restore_run(
     # settings another version added (at this run's values from here) or removed (the saved values)
     added = {} if trained is None else {k: v for k, v in config_additions(trained, config).items() if k != "resume"}
     removed = {} if trained is None else {k: v for k, v in config_additions(config, trained).items() if k != "resume"}
+    # TorchRL's Checkpoint skips saved components it was not given: their state would be lost for good
+    dropped = sorted(set(checkpoint.manifest(path)["components"]).difference(checkpoint.components))
+    if dropped:
+        raise ValueError(
+            f"resume: {path} holds {dropped}, which this run does not keep: it was trained with settings that "
+            f"need them (e.g. algo.sac.fixed_alpha=false for a learned temperature's optimizer); resume with those."
+        )
     checkpoint.load(path)
     run.setdefault("resumes", [])  # a checkpoint of an earlier version has none
     run.setdefault("wall_seconds", None)  # nor its wall time: unknown
