@@ -669,10 +669,20 @@ def _check_ppo(cfg: DictConfig) -> None:
 
 
 def _check_algo(cfg: DictConfig) -> None:
-    """``algo.*`` but its PPO, n-step and reward settings: BC's, SAC's, and what RND and absorbing states need."""
+    """``algo.*`` but its PPO, n-step and reward settings: alpha, BC, SAC, and what RND and absorbing states need."""
     a = cfg.algo
     _check(
         [
+            *(
+                (f"algo.alpha.{key}", a.alpha[key], 0 <= a.alpha[key] <= 1, "must be in [0, 1] (a teacher share)")
+                for key in ("initial", "final")
+            ),
+            (
+                "algo.alpha.anneal_frames",
+                a.alpha.anneal_frames,
+                a.alpha.mode != "linear" or (a.alpha.anneal_frames or 0) > 0,
+                "algo.alpha.mode=linear anneals over this many frames: set it > 0",
+            ),
             _at_least("algo.bc.epochs", a.bc.epochs, 1),
             _at_least("algo.bc.batch_size", a.bc.batch_size, 1),
             ("algo.bc.lr", a.bc.lr, a.bc.lr > 0, "must be > 0"),

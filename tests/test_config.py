@@ -167,6 +167,10 @@ def test_optional_blocks_are_typed_when_set():
         (["algo=sail_sac", "optim.actor_preactivation_coef=1e-3"], "and 0 unless algo.learner=td3"),
         (["algo=sail_sac", "eval.other_actor=true"], "eval.other_actor=True: is TD3's (algo.learner=td3)"),
         (["algo=sail_sac", "eval.actor=target"], "eval.actor='target': target is TD3's (algo.learner=td3)"),
+        (["algo.alpha.initial=1.5"], "config algo.alpha.initial=1.5: must be in [0, 1] (a teacher share)"),
+        (["algo=sail_no_lfd", "algo.alpha.final=-0.1"], "config algo.alpha.final=-0.1: must be in [0, 1]"),
+        (["algo.alpha.mode=linear"], "config algo.alpha.anneal_frames=None: algo.alpha.mode=linear anneals over"),
+        (["algo.alpha.mode=linear", "algo.alpha.anneal_frames=0"], "config algo.alpha.anneal_frames=0: algo.alpha"),
         (["eval.best_policy.window=0"], "eval.best_policy.window=0: must be >= 1"),
         (["eval.best_policy.episodes=-1"], "eval.best_policy.episodes=-1: must be >= 0"),
         (["algo=ddpgfd", "algo.nstep.n=1"], "algo.nstep.n=1: must be >= 2 (algo.nstep=null for the 1-step"),
@@ -216,6 +220,12 @@ def test_check_config_keeps_ranges_and_cross_field_rules(overrides, message):
 )
 def test_check_config_accepts_cadences_the_batch_divides(overrides):
     check_config(make(*overrides))
+
+
+def test_check_config_accepts_a_linear_alpha_with_its_length():
+    cfg = make("algo.alpha.mode=linear", "algo.alpha.anneal_frames=100000", "algo.alpha.final=1")
+    check_config(cfg)
+    assert (cfg.algo.alpha.initial, cfg.algo.alpha.final, cfg.algo.alpha.anneal_frames) == (0.5, 1.0, 100_000)
 
 
 def test_evaluate_config_is_typed():
