@@ -59,7 +59,8 @@ paper's Table 1 format (methods by env, the headline mean ± std over seeds, the
 the paper's SAIL beside them), with ``results_<teacher>.png`` (one panel per env), the budget, the
 CPUs, the wall time and the command of every cell; ``paper-comparison``, the paper's comparison in its
 layout (Table 1's SAIL and exploration variants beside the paper's figures, Figure 2's baselines,
-Figures 3-4's variants of SAIL), each cell the last-5 and the best-policy means. ``--update-docs`` writes every block of
+Figures 3-4's variants of SAIL, with ``paper_figure2_<teacher>.png`` and ``paper_figures34_<teacher>.png``
+of their curves), each cell the last-5 and the best-policy means. ``--update-docs`` writes every block of
 :data:`DOCUMENTS` (the README, ``docs/results.md`` and the studies' READMEs) and every file of
 :func:`generated_files` from the runs committed under ``benchmarks/results/``; ``--check`` writes
 nothing and names each block or file that differs from what they would be (exit status 1).
@@ -1060,21 +1061,32 @@ def readme_envs(groups: dict, teacher: str) -> list[str]:
     return sorted(envs, key=lambda env: (rank.get(paper_env(env), len(rank)), env))
 
 
-def plot_panels(path: Path, teacher: str, envs: list[str], groups: dict) -> None:
-    """One panel per env: each method's mean eval return over seeds with a min-max band, the teacher dashed."""
+def plot_panels(path: Path, teacher: str, envs: list[str], groups: dict, methods=None) -> None:
+    """One panel per env: each method's mean eval return over seeds with a min-max band, the teacher dashed.
+
+    Args:
+        path: the PNG to write.
+        teacher: the teacher label whose runs are drawn.
+        envs: one panel each, in this order.
+        groups: :attr:`Source.groups`.
+        methods: the method names to draw (every budget of each); None: every method.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    methods = sort_methods(method for (env, label, method) in groups if label == teacher)
-    colours = {method: plt.get_cmap("tab10")(index % 10) for index, method in enumerate(methods)}
+    labels = sort_methods(
+        label for (env, t, label) in groups if t == teacher and (methods is None or method_name(label) in methods)
+    )
+    colours = {label: plt.get_cmap("tab10")(index % 10) for index, label in enumerate(labels)}
     columns = min(2, len(envs))
     rows_ = math.ceil(len(envs) / columns)
     fig, axes = plt.subplots(rows_, columns, figsize=(5.5 * columns, 3.6 * rows_), squeeze=False)
     # a method keeps its colour across the panels; the grid may have more panels than envs
     for ax, env in zip(axes.flat, envs, strict=False):
-        draw_groups(ax, pair_groups(groups, env, teacher), lambda index, group: colours[group.method])
+        shown = [group for group in pair_groups(groups, env, teacher) if group.method in colours]
+        draw_groups(ax, shown, lambda index, group: colours[group.method])
         ax.set_title(env, fontsize=10)
         ax.set(xlabel="environment frames", ylabel="eval return")
         ax.legend(loc="best", fontsize=7)
@@ -1567,10 +1579,37 @@ def table_header(envs: list[str]) -> list[str]:
     return ["| | " + " | ".join(paper_env(env) for env in envs) + " |", "|---" * (len(envs) + 1) + "|"]
 
 
+# The paper's figures of curves that the comparison redraws: (file name, caption, methods), SAIL first
+PAPER_FIGURES = (
+    ("figure2", "Figure 2's methods", FIGURE2_ROWS),
+    ("figures34", "Figures 3 and 4's variants of SAIL", FIGURE34_ROWS),
+)
+
+
+def paper_figure(source: Source, name: str) -> Path:
+    """The PNG of one of :data:`PAPER_FIGURES` for ``source.teacher``."""
+    return source.out / f"paper_{name}_{safe_name(source.teacher)}.png"
+
+
+def paper_figure_envs(groups: dict, teacher: str, methods) -> list[str]:
+    """The envs of a figure of :data:`PAPER_FIGURES`: where a method besides SAIL ran."""
+    return envs_with(groups, teacher, methods[1:], readme_envs(groups, teacher))
+
+
+def draw_paper_comparison(source: Source) -> None:
+    """The curves of the paper's Figures 2-4 (:data:`PAPER_FIGURES`), one panel per env where they ran."""
+    source.out.mkdir(parents=True, exist_ok=True)
+    for name, _, methods in PAPER_FIGURES:
+        envs = paper_figure_envs(source.groups, source.teacher, methods)
+        if envs:
+            plot_panels(paper_figure(source, name), source.teacher, envs, source.groups, methods)
+
+
 def block_paper_comparison(source: Source, target: Path) -> str:
     """The paper's comparison laid out as the paper does: Table 1 (SAIL and its two exploration
     variants, beside the paper's figures), Figure 2's baselines and Figures 3-4's variants of SAIL
-    (curves only in the paper), each cell the last-5 mean ± std over seeds and the best policy's."""
+    (curves only in the paper: their tables, then their curves), each cell the last-5 mean ± std over
+    seeds and the best policy's."""
     groups, teacher = source.groups, source.teacher
     envs = envs_with(groups, teacher, TABLE1_ROWS, readme_envs(groups, teacher))
     if not envs:
@@ -1587,16 +1626,14 @@ def block_paper_comparison(source: Source, target: Path) -> str:
         + " | ".join(fmt(PAPER_TEACHER_RETURNS.get(paper_env(env)), 2) for env in envs)
         + " |",
     ]
-    for title, methods in (
-        ("**Figure 2's methods** (the paper: curves only).", FIGURE2_ROWS),
-        ("**Figures 3 and 4's variants of SAIL** (the paper: curves only).", FIGURE34_ROWS),
-    ):
-        shown = envs_with(groups, teacher, methods[1:], readme_envs(groups, teacher))  # where more than SAIL ran
+    for name, caption, methods in PAPER_FIGURES:
+        shown = paper_figure_envs(groups, teacher, methods)
         if shown:
             rows_ = [
                 line for line in comparison_rows(groups, teacher, methods, {}, shown) if "in the paper" not in line
             ]
-            sections += ["", title, "", *table_header(shown), *rows_]
+            title, figure = f"**{caption}** (the paper: curves only).", link(paper_figure(source, name), target)
+            sections += ["", title, "", *table_header(shown), *rows_, "", f"![{caption}]({figure})"]
     return "\n".join(sections)
 
 
@@ -1620,7 +1657,7 @@ BLOCKS = {
     "trusted-rule": Block(block_trusted_rule),
     "hopper-falls": Block(block_falls),
     "random-policy": Block(block_random_policy),
-    "paper-comparison": Block(block_paper_comparison),
+    "paper-comparison": Block(block_paper_comparison, draw_paper_comparison),
 }
 
 #: The generated blocks of the repository's Markdown files: file -> {block: the folder it is made from}

@@ -816,7 +816,7 @@ def test_best_policy_mean_and_std_over_the_seeds_that_evaluated_it(tmp_path):
     assert "eval 500 over 50 episodes" in details
 
 
-def test_paper_comparison_lays_out_table1_figure2_and_figures34(tmp_path):
+def test_paper_comparison_lays_out_table1_figure2_and_figures34(tmp_path, monkeypatch):
     """SAIL at two budgets and its variants beside the paper's Table 1 rows; the baselines and the
     ablations in their own tables, on the envs where they ran."""
     root = tmp_path / "comparison"
@@ -856,3 +856,23 @@ def test_paper_comparison_lays_out_table1_figure2_and_figures34(tmp_path):
     assert "| `sail`, 1M frames | 3200.0 ± 282.8 (2 seeds) |" in figure2 and "paper," not in figure2
     assert "| `sail_onpolicy`, 300k frames | 900.0 (1 seed) |" in figure34
     assert "gail" not in text  # no run, no row
+    # each figure's curves linked under its table, drawn from the runs of its methods only
+    assert "![Figure 2's methods](out/paper_figure2_paper.png)" in figure2
+    assert "![Figures 3 and 4's variants of SAIL](out/paper_figures34_paper.png)" in figure34
+    drawn, draw_groups = {}, aggregate.draw_groups
+
+    def recorded(ax, groups, colour_of):
+        drawn.setdefault(ax.get_figure(), []).append(sorted(group.method for group in groups))
+        draw_groups(ax, groups, colour_of)
+
+    monkeypatch.setattr(aggregate, "draw_groups", recorded)
+    aggregate.draw_paper_comparison(source)
+    assert sorted(p.name for p in (tmp_path / "out").glob("paper_*.png")) == [
+        "paper_figure2_paper.png",
+        "paper_figures34_paper.png",
+    ]
+    panels = sorted(drawn.values())  # one figure each, one Hopper panel each
+    assert panels == [
+        [["dac", "sail (1M)", "sail (300k)"]],
+        [["sail (1M)", "sail (300k)", "sail_onpolicy"]],
+    ], panels
