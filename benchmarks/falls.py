@@ -15,7 +15,8 @@ evaluation after the online actor's first pass, at each actor's falls against it
 the target actor), ``sail/q_mean``, ``sail/d_reward_mean``, ``train/dense_return`` and the
 trajectories promoted, each as a z-score within its run, so that envs pool; and, where
 the run logged it, the share of the evaluation's episodes below the teacher (a fall of one episode
-in ten, or a collapse).
+in ten, or a collapse). How many falls were over by the next evaluation tells a dip of one
+evaluation from a collapse that lasts.
 """
 
 from __future__ import annotations
@@ -98,6 +99,10 @@ def run_rows(folder: Path, window: int, given_teacher: float | None = None) -> t
             row[tag] = window_mean(series[tag], f - window, f)
         row["promoted"] = last_at(series[PROMOTED], f) - last_at(series[PROMOTED], f - window)
         rows.append(row)
+    # a fall the next evaluation is above the teacher again: a dip of one evaluation, not a collapse
+    for row, following in zip(rows, [*rows[1:], None], strict=True):
+        row["back"] = row["fell"] and following is not None and not following["fell"]
+        row["target_back"] = row["target_fell"] is True and following is not None and following["target_fell"] is False
     line = {
         "run": str(folder),
         "teacher": teacher,
@@ -166,7 +171,12 @@ def report(folders: list[Path], window: int, given_teacher: float | None = None)
         judged = [row for row in pooled if row[flag] is not None]
         groups[actor] = ([row for row in judged if row[flag]], [row for row in judged if not row[flag]])
     (online_fell, online_held), (target_fell, target_held) = groups["online"], groups["target"]
+    back = {actor: sum(row[key] for row in pooled) for actor, key in (("online", "back"), ("target", "target_back"))}
     lines += [
+        "",
+        f"Back above the teacher by the next evaluation (a dip of one evaluation, {window} frames, not a "
+        f"collapse): {back['online']} of the online actor's {len(online_fell)} falls, {back['target']} of the "
+        f"target actor's {len(target_fell)} (a run's last evaluation has no next).",
         "",
         f"Over the {window}-frame window before each evaluation after the online actor passed: at the online "
         f"actor's {len(online_fell)} falls against its {len(online_held)} other evaluations, and at the target "

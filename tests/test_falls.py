@@ -49,6 +49,10 @@ def test_falls_of_both_actors_and_the_logs_before_them(tmp_path):
     assert "| `actor/change` | 0.61 (n=2) | -1.22 (n=1) | 1.22 (n=1) | -0.61 (n=2) |" in text
     assert "| `promoted` | 0.67 (n=2) | -1.34 (n=1) | 1.07 (n=1) | -0.53 (n=2) |" in text
     assert "target actor's 1 falls against its 2 others" in text
+    # 30k's fall is back above at 40k; 50k's is the last evaluation; the target's only fall is at 50k
+    assert [(row["back"], row["target_back"]) for row in after] == [(True, False), (False, False), (False, False)]
+    assert "by the next evaluation (a dip of one evaluation, 10000 frames, not a collapse): 1 of the online " in text
+    assert "actor's 2 falls, 0 of the target actor's 1 (a run's last" in text
 
 
 def test_the_share_of_episodes_below_the_teacher_at_each_actors_falls(tmp_path):
