@@ -38,6 +38,10 @@ without logs, a results copy put back under ``--out`` to mark its cell done, giv
 ``scalars.csv`` unchanged). With
 ``--collect``, ``--stages``, ``--envs`` and ``--seeds`` keep only those runs (``--collect DEST
 --stages scale --envs Hopper-v4`` copies the one 1M-frame Hopper run).
+
+``--status`` prints, for the stages asked (``--envs`` and ``--seeds`` too), how many runs under
+``--out`` are done, started (a checkpoint saved, which ``resume=auto`` continues from) and not
+started, per teacher label and method, then each started run's checkpoint frame and last evaluation.
 """
 
 from __future__ import annotations
@@ -59,7 +63,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from run_matrix import REPO, Teacher, record_matrix, script_for  # noqa: E402
 
-from torchrl_sail.harness import native_bf16_matmul  # noqa: E402
+from torchrl_sail.harness import checkpoint_frames, native_bf16_matmul, read_scalar  # noqa: E402
 
 # The authors' one-trajectory teachers (their settings.py optimal_score names the file).
 PAPER_TEACHERS = {
@@ -313,12 +317,17 @@ def base_label(cell: Cell) -> str:
     return cell.teacher.removesuffix(f"-{cell.stage}")
 
 
+def run_dir_of(cell: Cell, out: Path) -> Path:
+    """The cell's run folder under ``out``: ``<stage>/<teacher>/<env>/<method>/seed<seed>``."""
+    return out / cell.stage / cell.teacher / cell.env / cell.method / f"seed{cell.seed}"
+
+
 def command(
     cell: Cell, out: Path, teacher: Path | None, python: str = sys.executable, extra: tuple[str, ...] = ()
 ) -> list[str]:
     """The run's command: the training script of the method's family (``sail_td3.py``, ``gail.py``, ``bc.py``),
     with the cell's overrides, then ``extra`` (``--overrides``)."""
-    run_dir = out / cell.stage / cell.teacher / cell.env / cell.method / f"seed{cell.seed}"
+    run_dir = run_dir_of(cell, out)
     return [
         python,
         str(script_for(cell.method)),
@@ -341,6 +350,34 @@ def finished(run_dir: Path) -> bool:
         return False
     done = json.loads(summary.read_text())
     return done.get("offline", False) or done.get("frames", 0) >= done.get("total_frames", 1)
+
+
+def status(cells: list[Cell], out: Path) -> list[str]:
+    """Where ``cells`` stand under ``out``, as report lines: per stage, then per teacher label and
+    method, how many runs are done (their whole budget, :func:`finished`), started (a checkpoint
+    saved; ``resume=auto`` continues from it) and not started; then each started run with its
+    checkpoint's frame and its last evaluation."""
+    groups: dict[tuple, list[str]] = {}
+    started = []
+    for cell in cells:
+        run_dir = run_dir_of(cell, out)
+        if finished(run_dir):
+            state, frames = "done", None
+        else:
+            frames = checkpoint_frames(run_dir)
+            state = "not started" if frames is None else "started"
+        groups.setdefault((cell.stage,), []).append(state)
+        groups.setdefault((cell.stage, cell.teacher, cell.method), []).append(state)
+        if state == "started":
+            evaluations = read_scalar(run_dir, "eval/return")
+            last = f", evaluated {evaluations[-1][1]:.1f} at {evaluations[-1][0]}" if evaluations else ""
+            started.append(f"  {run_dir.relative_to(out)}: checkpoint at {frames} of {cell.frames} frames{last}")
+    lines = []
+    for key, states in groups.items():
+        counts = ", ".join(f"{states.count(s)} {s}" for s in ("done", "started", "not started") if s in states)
+        name = key[0] if len(key) == 1 else f"  {key[1]} {key[2]}"
+        lines.append(f"{name}: {len(states)} runs, {counts}")
+    return lines + (["started (resume=auto continues each from its checkpoint):", *started] if started else [])
 
 
 def collect(
@@ -454,6 +491,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--dry-run", action="store_true")
     parser.add_argument("--collect", type=Path, metavar="DEST", help="copy the finished runs' results, run nothing")
+    parser.add_argument(
+        "--status", action="store_true", help="how many runs are done or started under --out, run nothing"
+    )
     args = parser.parse_args(argv)
     out = args.out.expanduser().resolve()
     if args.collect:
@@ -471,6 +511,9 @@ def main(argv: list[str] | None = None) -> int:
     ]
     if not cells:
         parser.error(f"--stages {' '.join(stages)} has no cell with these --envs and --seeds")
+    if args.status:
+        print("\n".join(status(cells, out)))
+        return 0
     if any(c.teacher.startswith("paper") for c in cells):  # --stages weak alone needs no paper teacher
         if args.teachers_dir is None:
             parser.error(f"--teachers-dir is required by --stages {' '.join(stages)}")
@@ -517,7 +560,7 @@ def main(argv: list[str] | None = None) -> int:
 
     def launch(item) -> tuple[Cell, int]:
         cell, cmd = item
-        run_dir = Path(cmd[-1].split("=", 1)[1])
+        run_dir = run_dir_of(cell, out)
         run_dir.mkdir(parents=True, exist_ok=True)
         start = time.time()
         with open(run_dir / "campaign.log", "a") as log:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 from collections import Counter
+from pathlib import Path
 
 import pytest
 import torch
@@ -424,6 +425,47 @@ def test_trusted_stage_confirms_the_candidate_on_eight_teachers_beside_its_compa
     assert len(lines) == 74 and "teacher.path=" not in lines[0]  # the shipped teacher: the env's default
     assert lines[0].endswith(f"hydra.run.dir={out / 'trusted' / 'shipped-trusted' / 'Swimmer-v4' / 'sail' / 'seed0'}")
     assert f"teacher.path={teachers / campaign.PAPER_TEACHERS['HalfCheetah-v4']} " in lines[1]
+
+
+def test_status_counts_done_started_and_waiting_runs_and_refuses_an_unreadable_checkpoint(tmp_path, capsys):
+    """The ant stage (12 runs: SAIL and DAC, 2 teacher labels, seeds 0-2): one run done, one with a
+    checkpoint at 50k and evaluations logged after it, one whose summary says 100k of 300k (interrupted,
+    so not done) and whose checkpoint is at 75k; the other nine not started."""
+    out = tmp_path / "out"
+    run = out / "ant" / "{}" / "Ant-v4" / "{}" / "seed{}"
+    done = Path(str(run).format("paper", "sail", 0))
+    done.mkdir(parents=True)
+    (done / "summary.json").write_text(json.dumps({"frames": 300_000, "total_frames": 300_000}))
+    checkpoints = {("paper", "dac", 0): 50_000, ("paper-nocontact", "sail", 1): 75_000}
+    for (teacher, method, seed), frames in checkpoints.items():
+        started = Path(str(run).format(teacher, method, seed))
+        (started / "checkpoint" / "components" / "0009-run").mkdir(parents=True)
+        (started / "checkpoint" / "manifest.json").write_text(
+            json.dumps({"components": {"run": {"path": "components/0009-run"}}})
+        )
+        (started / "checkpoint" / "components" / "0009-run" / "value.json").write_text(json.dumps({"frames": frames}))
+    (Path(str(run).format("paper", "dac", 0)) / "logs" / "scalars" / "eval").mkdir(parents=True)
+    (Path(str(run).format("paper", "dac", 0)) / "logs" / "scalars" / "eval" / "return.csv").write_text(
+        "50000,812.25\n60000,901.5\n"
+    )
+    (Path(str(run).format("paper-nocontact", "sail", 1)) / "summary.json").write_text(
+        json.dumps({"frames": 100_000, "total_frames": 300_000})
+    )
+
+    assert campaign.main(["--out", str(out), "--stages", "ant", "--status"]) == 0  # no --teachers-dir needed
+    assert capsys.readouterr().out.splitlines() == [
+        "ant: 12 runs, 1 done, 2 started, 9 not started",
+        "  paper sail: 3 runs, 1 done, 2 not started",
+        "  paper dac: 3 runs, 1 started, 2 not started",
+        "  paper-nocontact sail: 3 runs, 1 started, 2 not started",
+        "  paper-nocontact dac: 3 runs, 3 not started",
+        "started (resume=auto continues each from its checkpoint):",
+        "  ant/paper/Ant-v4/dac/seed0: checkpoint at 50000 of 300000 frames, evaluated 901.5 at 60000",
+        "  ant/paper-nocontact/Ant-v4/sail/seed1: checkpoint at 75000 of 300000 frames",
+    ]
+    (Path(str(run).format("paper", "dac", 0)) / "checkpoint" / "manifest.json").write_text("{")
+    with pytest.raises(ValueError, match=r"dac/seed0/checkpoint/manifest.json: no readable run component"):
+        campaign.main(["--out", str(out), "--stages", "ant", "--status"])
 
 
 def test_ant_stage_runs_sail_and_dac_on_the_recorded_and_the_reproduced_columns(tmp_path, capsys):

@@ -533,6 +533,35 @@ def _logged_at(line: str) -> float:
         return float("inf")
 
 
+def checkpoint_frames(run_dir: Path) -> int | None:
+    """The frame of the run's last saved checkpoint, read from its ``run`` component without loading
+    the checkpoint; ``None`` when none is saved.
+
+    Raises:
+        ValueError: a checkpoint whose manifest or ``run`` component cannot be read, naming the file.
+
+    Examples:
+        >>> import json, tempfile
+        >>> run_dir = Path(tempfile.mkdtemp())
+        >>> checkpoint_frames(run_dir) is None
+        True
+        >>> (run_dir / "checkpoint" / "components" / "0009-run").mkdir(parents=True)
+        >>> _ = (run_dir / "checkpoint" / "manifest.json").write_text(
+        ...     json.dumps({"components": {"run": {"path": "components/0009-run", "files": ["value.json"]}}}))
+        >>> _ = (run_dir / "checkpoint" / "components" / "0009-run" / "value.json").write_text('{"frames": 25000}')
+        >>> checkpoint_frames(run_dir)
+        25000
+    """
+    manifest = checkpoint_dir(run_dir) / "manifest.json"
+    if not manifest.exists():
+        return None
+    try:
+        value = checkpoint_dir(run_dir) / json.loads(manifest.read_text())["components"]["run"]["path"] / "value.json"
+        return int(json.loads(value.read_text())["frames"])
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        raise ValueError(f"{manifest}: no readable run component ({type(err).__name__}: {err})") from err
+
+
 def last_checkpoint(run_dir: Path, run: dict) -> str | None:
     """``"<run_dir>/checkpoint, frame <n>"`` once a checkpoint is saved (for error messages), else ``None``."""
     path = checkpoint_dir(run_dir)
