@@ -9,13 +9,23 @@ four shipped ones (``examples/teachers``): the candidate (teacher labels ``paper
 runs' ``eval/return_online``: training does not depend on the evaluated actor) and the defaults
 (labels ``paper`` and ``shipped``, SAIL), with DAC (label ``paper``) beside them. Per run: whether
 an evaluation passed the teacher, the last-5 mean and the fall share
-(:func:`torchrl_sail.harness.fall_share`). The verdict is ``pending`` until every run the rule needs
-is finished; meanwhile an interim block compares each setting with the defaults on the cells both have.
+(:func:`torchrl_sail.harness.fall_share`), and the best policy's evaluation, reported beside last-5.
+The verdict is ``pending`` until every run the rule needs is finished; meanwhile an interim block
+compares each setting with the defaults on the cells both have. The decision then follows the
+rule's order: the candidate by the first set, then by the second; then the penalty alone; else the
+defaults stay.
+
+A run the rule reads is refused, naming its folder, when it was not run with its setting
+(:data:`SETTINGS`; a key an older run's config lacks is at the default of its time), when two runs
+claim the same cell, when it has fewer than five evaluations or a non-finite one, or when its
+teacher's return is missing or differs from another run's of the same env and teacher. A fall share
+that counts no evaluation (no run passed its teacher) is undefined, and a criterion on it is missed.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import statistics
 import sys
 from dataclasses import dataclass
@@ -34,6 +44,14 @@ MIN_VS_TEACHER = {"Hopper-v4": 1.5, "Walker2d-v4": 1.5, "Swimmer-v4": 1.5, "Half
 ENVS = tuple(MIN_VS_TEACHER)
 FALL_ENVS = ("Hopper-v4", "Walker2d-v4")  # where a fall ends an episode
 MAX_FALL_SHARE = 0.05
+# What each setting's runs were run with; an older run's config that lacks a key ran at its default then
+SETTINGS = {
+    "candidate": {"optim.actor_preactivation_coef": 0.001, "eval.actor": "target", "eval.other_actor": True},
+    "defaults": {"optim.actor_preactivation_coef": 0.0, "eval.actor": "online"},
+    "dac": {"optim.actor_preactivation_coef": 0.0, "eval.actor": "online"},
+}
+EVALUATIONS = {"eval.episodes": 10, "eval.every_frames": 10_000}  # every setting's
+BEFORE_THE_KEY = {"optim.actor_preactivation_coef": 0.0, "eval.actor": "online", "eval.other_actor": False}
 
 
 @dataclass
@@ -45,6 +63,7 @@ class Result:
     seed: int
     teacher_return: float
     evals: list[tuple[int, float]]
+    best_policy: float | None = None  # the kept policy's 50-episode return (the penalty alone keeps none)
 
     @property
     def passed(self) -> bool:
@@ -60,30 +79,78 @@ class Result:
         return (0, 0) if share is None else (share["falls"], share["evaluations"])
 
 
+def setting_of(run) -> str | None:
+    """The setting whose runs ``run`` claims to be by its teacher label and method, or None."""
+    base = run.teacher.removesuffix("-trusted")
+    if base not in TEACHERS or run.method not in ("sail", "dac"):
+        return None
+    if run.teacher.endswith("-trusted"):
+        return "candidate" if run.method == "sail" else None
+    if run.method == "sail":
+        return "defaults"
+    return "dac" if base == "paper" else None
+
+
+def config_value(config: dict, key: str):
+    """``config``'s value at the dotted ``key``; a key the config lacks is at :data:`BEFORE_THE_KEY`."""
+    value = config
+    for part in key.split("."):
+        if not isinstance(value, dict) or part not in value:
+            return BEFORE_THE_KEY.get(key)
+        value = value[part]
+    return value
+
+
+def checked_evals(run, setting: str, evals: list[tuple[int, float]], tag: str) -> list[tuple[int, float]]:
+    """``evals``, after checking that ``run`` was run with ``setting`` and that the rule can read them."""
+    for key, expected in {**SETTINGS[setting], **EVALUATIONS}.items():
+        if config_value(run.config, key) != expected:
+            raise ValueError(
+                f"{run.folder}: counted as a {setting} run, but its config has {key}="
+                f"{config_value(run.config, key)!r} where the {setting} setting has {expected!r}"
+            )
+    if run.teacher_return is None or not math.isfinite(run.teacher_return):
+        raise ValueError(f"{run.folder / 'summary.json'}: teacher_return is {run.teacher_return!r}, not a number")
+    if len(evals) < HEADLINE_EVALS:
+        raise ValueError(f"{run.folder}: {len(evals)} {tag} evaluations, fewer than the {HEADLINE_EVALS} of last-5")
+    bad = [(frames, value) for frames, value in evals if not math.isfinite(value)]
+    if bad:
+        raise ValueError(f"{run.folder}: {tag} is {bad[0][1]} at frame {bad[0][0]}")
+    return evals
+
+
 def settings(roots: list[Path]) -> dict[str, dict[tuple[str, str, int], Result]]:
-    """Every finished 300k run the rule reads, by setting and (env, teacher, seed)."""
+    """Every finished 300k run the rule reads, by setting and (env, teacher, seed), each checked
+    (:func:`checked_evals`): two runs of one cell, or two teacher returns of one env and teacher, are
+    refused, naming both folders."""
     found = {"candidate": {}, "penalty": {}, "defaults": {}, "dac": {}}
+    folders, teachers = {}, {}
     for folder in find_run_folders(roots):
         run = load_run(folder)
         total = (run.config.get("collector") or {}).get("total_frames")
         if run.problem is not None or total != FRAMES or run.seed not in SEEDS or run.env not in ENVS:
             continue
-        base = run.teacher.removesuffix("-trusted")
-        if base not in TEACHERS or run.method not in ("sail", "dac"):
+        setting = setting_of(run)
+        if setting is None:
             continue
-        key = (run.env, base, run.seed)
-        if run.teacher.endswith("-trusted"):
-            if run.method != "sail":
-                continue
-            found["candidate"][key] = Result(*key, run.teacher_return, run.curve)
+        key = (run.env, run.teacher.removesuffix("-trusted"), run.seed)
+        if (setting, key) in folders:
+            raise ValueError(f"two {setting} runs of {key}: {folders[setting, key]} and {folder}")
+        folders[setting, key] = folder
+        evals = checked_evals(run, setting, run.curve, "eval/return")
+        first = teachers.setdefault(key[:2], (run.teacher_return, folder))
+        if abs(first[0] - run.teacher_return) > 1e-6 * max(1.0, abs(first[0])):
+            raise ValueError(
+                f"teacher return {first[0]} in {first[1]} but {run.teacher_return} in {folder}: "
+                f"the {key[1]} teacher of {key[0]} must be one file"
+            )
+        found[setting][key] = Result(*key, run.teacher_return, evals, run.best_policy_return)
+        if setting == "candidate":
             online = sorted(dict(read_scalar(folder, "eval/return_online")).items())
             if online:
-                found["penalty"][key] = Result(*key, run.teacher_return, online)
-        else:
-            if run.method == "dac" and base == "paper":
-                found["dac"][key] = Result(*key, run.teacher_return, run.curve)
-            elif run.method == "sail":
-                found["defaults"][key] = Result(*key, run.teacher_return, run.curve)
+                found["penalty"][key] = Result(
+                    *key, run.teacher_return, checked_evals(run, setting, online, "eval/return_online")
+                )
     return found
 
 
@@ -145,8 +212,9 @@ def judge(found: dict, setting: str) -> list[str]:
     default_passed = sum(r.passed for r in defaults.values())
     falls, counted = pooled_falls(ours)
     default_falls, default_counted = pooled_falls(defaults)
-    share = falls / counted if counted else 0.0
-    default_share = default_falls / default_counted if default_counted else 0.0
+    # no evaluation after a pass: the share is undefined, and a criterion on it is not met
+    share = falls / counted if counted else math.inf
+    default_share = default_falls / default_counted if default_counted else -math.inf
     first, second = [], []
     first.append((f"every run passes its teacher: {passed} of {len(ours)}", passed == len(ours)))
     for env in ENVS:
@@ -162,12 +230,7 @@ def judge(found: dict, setting: str) -> list[str]:
     for env in ENVS:
         mean, dac_mean = paper_mean(ours, env)[0], paper_mean(dac, env)[0]
         first.append((f"{env}: last-5 {mean:.1f} above DAC's {dac_mean:.1f}", mean > dac_mean))
-    first.append(
-        (
-            f"fall share on Hopper and Walker2d {100 * share:.1f}% ({falls}/{counted}), at most 5%",
-            share <= MAX_FALL_SHARE,
-        )
-    )
+    first.append((f"fall share on Hopper and Walker2d {percent(falls, counted)}, at most 5%", share <= MAX_FALL_SHARE))
     second.append((f"runs passing: {passed} against the defaults' {default_passed}", passed > default_passed))
     for env in ENVS:
         mean, (base, std) = paper_mean(ours, env)[0], paper_mean(defaults, env)
@@ -179,8 +242,7 @@ def judge(found: dict, setting: str) -> list[str]:
         )
     second.append(
         (
-            f"fall share {100 * share:.1f}% ({falls}/{counted}), not above the defaults' "
-            f"{100 * default_share:.1f}% ({default_falls}/{default_counted})",
+            f"fall share {percent(falls, counted)}, not above the defaults' {percent(default_falls, default_counted)}",
             share <= default_share,
         )
     )
@@ -189,6 +251,60 @@ def judge(found: dict, setting: str) -> list[str]:
     met_first, met_second = all(ok for _, ok in first), all(ok for _, ok in second)
     verdict = "meets the first set" if met_first else "meets the second set" if met_second else "meets neither set"
     return [*lines, f"**Verdict: {setting} {verdict}.**", ""]
+
+
+def verdict(lines: list[str]) -> str:
+    """``pending``, ``first``, ``second`` or ``neither``, from :func:`judge`'s last line."""
+    last = next(line for line in reversed(lines) if line.startswith("**Verdict"))
+    return next(word for word in ("pending", "first", "second", "neither") if word in last)
+
+
+def decision(candidate: str, penalty: str) -> str:
+    """The rule's decision from the two verdicts, in the rule's order."""
+    if "pending" in (candidate, penalty):
+        return "**Decision: pending** (the verdicts wait for every run)."
+    if candidate in ("first", "second"):
+        return f"**Decision: the candidate becomes the default** (it meets the {candidate} set)."
+    if penalty in ("first", "second"):
+        return (
+            f"**Decision: the penalty alone becomes the default** (it meets the {penalty} set; the candidate neither)."
+        )
+    return "**Decision: the defaults stay**; the candidate and the penalty alone remain options (neither meets a set)."
+
+
+def cell(values: list[float | None]) -> str:
+    """Mean ± sample std of the values there are, with how many seeds where fewer than five; ``-`` if none."""
+    there = [value for value in values if value is not None]
+    if not there:
+        return "-"
+    std = f" ± {statistics.stdev(there):.1f}" if len(there) > 1 else ""
+    seeds = f" ({len(there)} seed{'s' if len(there) > 1 else ''})" if len(there) < len(SEEDS) else ""
+    return f"{statistics.fmean(there):.1f}{std}{seeds}"
+
+
+def table(found: dict) -> list[str]:
+    """Per env and teacher (its return), each setting's last-5 and best policy over the seeds finished
+    so far; the penalty alone keeps no best policy (its actor is not the one kept)."""
+    columns = [("candidate", "last5"), ("candidate", "best_policy"), ("penalty", "last5")]
+    columns += [("defaults", "last5"), ("defaults", "best_policy"), ("dac", "last5"), ("dac", "best_policy")]
+    header = " | ".join(
+        f"{name} {'best policy' if measure == 'best_policy' else 'last-5'}" for name, measure in columns
+    )
+    lines = [
+        "Per env and teacher, the mean ± sample std over seeds of each run's last-5, and of its best policy "
+        "(50 episodes, kept by the SAIL authors' rule; not part of the rule); DAC with the paper's teachers only.",
+        "",
+        f"| env | teacher | {header} |",
+        "|---" * (len(columns) + 2) + "|",
+    ]
+    for env in ENVS:
+        for teacher in TEACHERS:
+            runs = {name: [results.get((env, teacher, seed)) for seed in SEEDS] for name, results in found.items()}
+            returns = [run.teacher_return for cell_runs in runs.values() for run in cell_runs if run is not None]
+            shown = f"{teacher} ({returns[0]:.1f})" if returns else teacher
+            cells = [cell([getattr(run, measure, None) for run in runs[name]]) for name, measure in columns]
+            lines.append(f"| {env} | {shown} | " + " | ".join(cells) + " |")
+    return [*lines, ""]
 
 
 def report(roots: list[Path]) -> str:
@@ -201,8 +317,8 @@ def report(roots: list[Path]) -> str:
         + ".",
         "",
     ]
-    lines += judge(found, "candidate")
-    lines += judge(found, "penalty")
+    candidate, penalty = judge(found, "candidate"), judge(found, "penalty")
+    lines += [*table(found), *candidate, *penalty, decision(verdict(candidate), verdict(penalty))]
     return "\n".join(lines)
 
 

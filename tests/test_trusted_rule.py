@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import pytest
 import yaml
 from benchmark_scripts import load_benchmark
 
@@ -12,13 +13,42 @@ rule = load_benchmark("trusted_rule")
 TEACHER = 100.0
 
 
-def write_run(root, label, env, method, seed, returns, online=None, frames=300_000, stage="trusted"):
-    """A collected run folder under ``root/<stage>`` (a campaign stage): evaluations every 10k frames."""
+CANDIDATE = {"optim": {"actor_preactivation_coef": 0.001}, "eval": {"actor": "target", "other_actor": True}}
+
+
+def write_run(
+    root,
+    label,
+    env,
+    method,
+    seed,
+    returns,
+    online=None,
+    frames=300_000,
+    stage="trusted",
+    teacher=TEACHER,
+    best_policy=None,
+    config=None,
+):
+    """A collected run folder under ``root/<stage>`` (a campaign stage): evaluations every 10k frames,
+    10 episodes each; a ``*-trusted`` label is run with the candidate's settings, any other with a
+    config that predates them (as the campaign's earlier runs), unless ``config`` says otherwise."""
     folder = root / stage / label / env / method / f"seed{seed}"
     folder.mkdir(parents=True)
-    config = {"env": {"name": env}, "algo": {"name": method}, "seed": seed, "collector": {"total_frames": frames}}
+    if config is None:
+        config = CANDIDATE if label.endswith("-trusted") else {}
+    config = {
+        "env": {"name": env},
+        "algo": {"name": method},
+        "seed": seed,
+        "collector": {"total_frames": frames},
+        **config,
+        "eval": {"episodes": 10, "every_frames": 10_000, **config.get("eval", {})},
+    }
     (folder / "config.yaml").write_text(yaml.safe_dump(config))
-    summary = {"env": env, "frames": frames, "total_frames": frames, "teacher_return": TEACHER}
+    summary = {"env": env, "frames": frames, "total_frames": frames, "teacher_return": teacher}
+    if best_policy is not None:
+        summary["best_policy"] = {"eval_return": best_policy}
     (folder / "summary.json").write_text(json.dumps(summary))
     rows = ["tag,frames,value"]
     rows += [f"eval/return,{10_000 * (i + 1)},{value}" for i, value in enumerate(returns)]
@@ -26,29 +56,49 @@ def write_run(root, label, env, method, seed, returns, online=None, frames=300_0
     (folder / "scalars.csv").write_text("\n".join(rows) + "\n")
 
 
-def full_set(root, skip=()):
+# the target actor never falls after passing; the online one falls once in 4; the defaults: last-5
+# (200 + 90 + 200 + 200 + 200) / 5 = 178, one fall in 4; DAC: 150
+CANDIDATE_RETURNS = [50, 200, 200, 200, 200, 200]
+ONLINE_RETURNS = [50, 200, 50, 200, 200, 200]
+DEFAULT_RETURNS = [50, 200, 90, 200, 200, 200]
+DAC_RETURNS = [50, 150, 150, 150, 150, 150]
+
+
+def full_set(root, skip=(), candidate=None, online=None, defaults=None):
+    """Every run the rule needs; ``candidate``, ``online`` and ``defaults`` map (env, teacher, seed) to
+    the returns of the cells they change."""
     (root / "trusted").mkdir(parents=True)
     (root / "trusted" / "matrix.json").write_text("{}")
     for env in rule.ENVS:
         for seed in rule.SEEDS:
             for teacher in rule.TEACHERS:
-                if (env, teacher, seed) not in skip:
-                    # the target actor never falls after passing; the online one falls once in 4
+                key = (env, teacher, seed)
+                if key not in skip:
                     write_run(
                         root,
                         f"{teacher}-trusted",
                         env,
                         "sail",
                         seed,
-                        [50, 200, 200, 200, 200, 200],
-                        online=[50, 200, 50, 200, 200, 200],
+                        (candidate or {}).get(key, CANDIDATE_RETURNS),
+                        online=(online or {}).get(key, ONLINE_RETURNS),
                     )
-                # the defaults: last-5 (200 + 90 + 200 + 200 + 200) / 5 = 178, one fall in 4
-                write_run(root, teacher, env, "sail", seed, [50, 200, 90, 200, 200, 200])
-            write_run(root, "paper", env, "dac", seed, [50, 150, 150, 150, 150, 150])
+                write_run(root, teacher, env, "sail", seed, (defaults or {}).get(key, DEFAULT_RETURNS))
+            write_run(root, "paper", env, "dac", seed, DAC_RETURNS)
     (root / "scale").mkdir()
     (root / "scale" / "matrix.json").write_text("{}")
     write_run(root, "paper", "Hopper-v4", "sail", 0, [1] * 10, frames=1_000_000, stage="scale")  # not read
+
+
+def every(env=None, teacher=None, seeds=rule.SEEDS):
+    """The (env, teacher, seed) cells of ``env`` and ``teacher`` (each None for all)."""
+    return [
+        (e, t, seed)
+        for e in rule.ENVS
+        for t in rule.TEACHERS
+        for seed in seeds
+        if env in (None, e) and teacher in (None, t)
+    ]
 
 
 def test_rule_on_hand_counted_runs(tmp_path):
@@ -69,6 +119,10 @@ def test_rule_on_hand_counted_runs(tmp_path):
     assert "MISSED: Hopper-v4: last-5 170.0, not below the defaults' 178.0 - 0.0 = 178.0" in penalty
     assert "met: fall share 25.0% (20/80), not above the defaults' 25.0% (20/80)" in penalty
     assert "**Verdict: penalty meets neither set.**" in penalty
+    assert text.endswith("**Decision: the candidate becomes the default** (it meets the first set).")
+    # the table: every cell's five seeds alike (std 0); the defaults and DAC kept no best policy
+    assert "| Hopper-v4 | paper (100.0) | 200.0 ± 0.0 | - | 170.0 ± 0.0 | 178.0 ± 0.0 | - | 150.0 ± 0.0 | - |" in text
+    assert "| Hopper-v4 | shipped (100.0) | 200.0 ± 0.0 | - | 170.0 ± 0.0 | 178.0 ± 0.0 | - | - | - |" in text
 
 
 def test_rule_is_pending_until_every_run_is_there(tmp_path):
@@ -76,6 +130,7 @@ def test_rule_is_pending_until_every_run_is_there(tmp_path):
     text = rule.report([tmp_path])
     assert "- candidate: 1 runs missing (Walker2d-v4 shipped seed 3)" in text
     assert text.count("**Verdict: pending.**") == 2 and "MISSED" not in text
+    assert text.endswith("**Decision: pending** (the verdicts wait for every run).")
     candidate, penalty = text.split("### penalty")
     # the 39 cells both have; on Hopper and Walker2d 19 of them, 4 evaluations after the pass each
     assert "on the 39 (env, teacher, seed) cells both the candidate and the defaults" in candidate
@@ -103,3 +158,136 @@ def test_interim_without_a_hopper_or_walker_cell_counts_no_falls(tmp_path):
     text = candidate_and_default(tmp_path, "Swimmer-v4", default_seed=0)
     assert "- fall share on Hopper and Walker2d: n/a (0 counted) against the defaults' n/a (0 counted);" in text
     assert "- last-5 above the defaults' on 0 of 1 cells." in text  # 178 against 200
+
+
+def test_decision_by_the_second_set(tmp_path):
+    """The candidate falls as the defaults do (25%: first set missed), but every run passes where the
+    defaults never take off with the shipped Swimmer teacher (40 against 35)."""
+    full_set(
+        tmp_path,
+        candidate={key: DEFAULT_RETURNS for key in every()},
+        defaults={key: [50] * 6 for key in every("Swimmer-v4", "shipped")},
+    )
+    text = rule.report([tmp_path])
+    candidate = text.split("### penalty")[0]
+    assert "MISSED: fall share on Hopper and Walker2d 25.0% (20/80), at most 5%" in candidate
+    assert "met: runs passing: 40 against the defaults' 35" in candidate
+    assert "met: Swimmer-v4: last-5 178.0, not below the defaults' 178.0 - 0.0 = 178.0" in candidate
+    assert "met: fall share 25.0% (20/80), not above the defaults' 25.0% (20/80)" in candidate
+    assert "**Verdict: candidate meets the second set.**" in candidate
+    assert text.endswith("**Decision: the candidate becomes the default** (it meets the second set).")
+
+
+def test_decision_falls_back_to_the_penalty_then_to_the_defaults(tmp_path):
+    """The target actor falls after passing and ends at (200 + 4 x 50) / 5 = 80: neither set. Its
+    online actor never falls and ends at 200: the penalty alone meets the first set; where the online
+    actor does as the target, the defaults stay."""
+    falling = [50, 200, 50, 50, 50, 50]
+    full_set(
+        tmp_path / "a", candidate={key: falling for key in every()}, online={key: CANDIDATE_RETURNS for key in every()}
+    )
+    text = rule.report([tmp_path / "a"])
+    assert "MISSED: Hopper-v4: last-5 80.0 = 0.80 x the teacher (100.0), at least 1.5" in text
+    assert "MISSED: fall share on Hopper and Walker2d 100.0% (80/80), at most 5%" in text
+    assert "**Verdict: candidate meets neither set.**" in text and "**Verdict: penalty meets the first set.**" in text
+    assert text.endswith(
+        "**Decision: the penalty alone becomes the default** (it meets the first set; the candidate neither)."
+    )
+
+    full_set(tmp_path / "b", candidate={key: falling for key in every()}, online={key: falling for key in every()})
+    text = rule.report([tmp_path / "b"])
+    assert "**Verdict: penalty meets neither set.**" in text
+    assert text.endswith(
+        "**Decision: the defaults stay**; the candidate and the penalty alone remain options (neither meets a set)."
+    )
+
+
+def test_criteria_at_their_boundaries(tmp_path):
+    """An evaluation equal to the teacher's return does not pass it; last-5 exactly 1.5 x the teacher is
+    enough, equal to DAC's is not; 4 falls in 80 evaluations is 5%, enough; and the defaults' spread
+    is the sample standard deviation (160-200: 15.8, where the population one is 14.1)."""
+    candidate = {("Swimmer-v4", "shipped", 0): [50, 100, 100, 100, 100, 100]}
+    candidate |= {key: [50, 150, 150, 150, 150, 150] for key in every("Hopper-v4", "paper")}
+    candidate |= {key: DEFAULT_RETURNS for key in every("Walker2d-v4", "paper", seeds=(0, 1, 2, 3))}
+    candidate |= {key: [50] + [164.5] * 5 for key in every("Swimmer-v4", "paper")}
+    defaults = {("Swimmer-v4", "paper", seed): [50] + [160 + 10 * seed] * 5 for seed in rule.SEEDS}
+    full_set(tmp_path, candidate=candidate, defaults=defaults)
+    text = rule.report([tmp_path])
+    candidate_text = text.split("### penalty")[0]
+    assert "MISSED: every run passes its teacher: 39 of 40" in candidate_text
+    assert "met: Hopper-v4: last-5 150.0 = 1.50 x the teacher (100.0), at least 1.5" in candidate_text
+    assert "MISSED: Hopper-v4: last-5 150.0 above DAC's 150.0" in candidate_text
+    assert "met: fall share on Hopper and Walker2d 5.0% (4/80), at most 5%" in candidate_text
+    assert "met: Swimmer-v4: last-5 164.5, not below the defaults' 180.0 - 15.8 = 164.2" in candidate_text
+    # the table: Walker2d's paper seeds 0-3 at 178, seed 4 at 200
+    assert "| Walker2d-v4 | paper (100.0) | 182.4 ± 9.8 |" in text
+    assert "| Swimmer-v4 | paper (100.0) | 164.5 ± 0.0 | - | 170.0 ± 0.0 | 180.0 ± 15.8 | - | 150.0 ± 0.0 | - |" in text
+
+
+def test_a_fall_share_with_no_evaluation_after_a_pass_meets_no_criterion(tmp_path):
+    """No candidate run on Hopper or Walker2d passes its teacher: its fall share counts nothing, and
+    neither criterion on it is met (a share of 0 would meet both)."""
+    full_set(tmp_path, candidate={key: [50] * 6 for env in rule.FALL_ENVS for key in every(env)})
+    candidate = rule.report([tmp_path]).split("### penalty")[0]
+    assert "MISSED: fall share on Hopper and Walker2d n/a (0 counted), at most 5%" in candidate
+    assert "MISSED: fall share n/a (0 counted), not above the defaults' 25.0% (20/80)" in candidate
+
+
+def test_best_policy_is_reported_beside_last5(tmp_path):
+    (tmp_path / "trusted").mkdir(parents=True)
+    (tmp_path / "trusted" / "matrix.json").write_text("{}")
+    for seed, best in ((0, 210.0), (1, 230.0)):
+        write_run(tmp_path, "paper-trusted", "Hopper-v4", "sail", seed, CANDIDATE_RETURNS, best_policy=best)
+    text = rule.report([tmp_path])
+    # mean 220, sample std sqrt(2 * 10^2 / 1) = 14.1, two of five seeds
+    assert "| Hopper-v4 | paper (100.0) | 200.0 ± 0.0 (2 seeds) | 220.0 ± 14.1 (2 seeds) | - | - | - | - | - |" in text
+    assert text.endswith("**Decision: pending** (the verdicts wait for every run).")
+
+
+@pytest.mark.parametrize(
+    "runs, message",
+    [
+        (  # a candidate run that evaluated its online actor
+            [("paper-trusted", "sail", {"optim": {"actor_preactivation_coef": 0.001}})],
+            r"paper-trusted/Hopper-v4/sail/seed0: counted as a candidate run, but its config has "
+            r"eval.actor='online' where the candidate setting has 'target'",
+        ),
+        (  # a defaults run with the penalty
+            [("paper", "sail", {"optim": {"actor_preactivation_coef": 0.001}})],
+            r"counted as a defaults run, but its config has optim.actor_preactivation_coef=0.001 where the "
+            r"defaults setting has 0.0",
+        ),
+        (  # fewer episodes per evaluation
+            [("paper", "dac", {"eval": {"episodes": 5}})],
+            r"counted as a dac run, but its config has eval.episodes=5 where the dac setting has 10",
+        ),
+        (  # too few evaluations for a last-5
+            [("paper", "sail", {}, {"returns": [50, 200, 200, 200]})],
+            r"Hopper-v4/sail/seed0: 4 eval/return evaluations, fewer than the 5 of last-5",
+        ),
+        (
+            [("paper", "sail", {}, {"returns": [50, 200, float("nan"), 200, 200, 200]})],
+            r"Hopper-v4/sail/seed0: eval/return is nan at frame 30000",
+        ),
+        ([("paper", "sail", {}, {"teacher": None})], r"seed0/summary.json: teacher_return is None, not a number"),
+        (  # one env, one teacher label, two teacher returns
+            [("paper", "sail", {}), ("paper", "dac", {}, {"teacher": 120.0})],
+            r"teacher return 120.0 in .*dac/seed0 but 100.0 in .*sail/seed0: the paper teacher of Hopper-v4 must "
+            r"be one file",
+        ),
+        (  # the same cell in two stages
+            [("paper", "sail", {}), ("paper", "sail", {}, {"stage": "main"})],
+            r"two defaults runs of \('Hopper-v4', 'paper', 0\): .*main/paper.* and .*trusted/paper",
+        ),
+    ],
+)
+def test_rule_refuses_a_run_it_cannot_count(tmp_path, runs, message):
+    for stage in ("main", "trusted"):
+        (tmp_path / stage).mkdir()
+        (tmp_path / stage / "matrix.json").write_text("{}")
+    for label, method, config, *more in runs:
+        options = {"returns": CANDIDATE_RETURNS, **(more[0] if more else {})}
+        returns = options.pop("returns")
+        write_run(tmp_path, label, "Hopper-v4", method, 0, returns, config=config, **options)
+    with pytest.raises(ValueError, match=message):
+        rule.report([tmp_path])
