@@ -5,12 +5,14 @@ show in the frames before each evaluation that fell.
 
 A run folder is a live run (``logs/scalars/``) or a results copy (``scalars.csv``) with its
 ``config.yaml`` and, once finished, its ``summary.json`` (its teacher's return; for an unfinished
-run, ``--teacher-return``). Its evaluations logged the online actor and, with
-``eval.other_actor=true``, both actors (``eval/return`` and ``eval/return_target`` or
-``eval/return_online``; otherwise the target actor's columns read n/a). Per run: the fall share of
-each actor (:func:`torchrl_sail.harness.fall_share`), and how often one fell where the other did not.
-Then, pooled over the runs, each diagnostic averaged over the ``--window`` frames before an
-evaluation after the online actor's first pass, at each actor's falls against its other evaluations:
+run, ``--teacher-return``). Its evaluations (``eval/return``) logged the actor of ``eval.actor``
+and, with ``eval.other_actor=true``, the other one too (``eval/return_target`` or
+``eval/return_online``); a run that evaluated the online actor alone reads "not evaluated" for the
+target actor, and one that evaluated the target actor alone is refused. Per run: the fall share of
+each actor on its own curve (:func:`torchrl_sail.harness.fall_share`; "never passed" where it never
+did), and how often one fell where the other held. Then, pooled over the runs, each diagnostic
+averaged over the ``--window`` frames before an evaluation after either actor's first pass, at each
+actor's falls (from its own first pass) against its other evaluations:
 ``actor/change`` and ``actor/target_gap`` (how far a TD3 block moves the actor, how far it is from
 the target actor), ``sail/q_mean``, ``sail/d_reward_mean``, ``train/dense_return`` and the
 trajectories promoted, each as a z-score within its run, so that envs pool; and, where
@@ -69,56 +71,76 @@ def teacher_return(folder: Path, given: float | None) -> float:
     return given
 
 
+def first_pass(curve: dict[int, float] | None, teacher: float) -> int | None:
+    """The frame of the first evaluation strictly above ``teacher``; None if none is (or no curve)."""
+    return next((f for f in sorted(curve or {}) if curve[f] > teacher), None)
+
+
 def run_rows(folder: Path, window: int, given_teacher: float | None = None) -> tuple[dict, list[dict]]:
-    """The run's summary line and one row per online evaluation after its first pass."""
+    """The run's summary line and one row per evaluation after either actor's first pass, where each
+    actor is judged (fell or not) from its own first pass on (``None`` before it, or where it was not
+    evaluated)."""
     teacher = teacher_return(folder, given_teacher)
     curves = actors(folder)
     if not curves["online"]:
         raise ValueError(f"{folder}: no eval/return_online: the run evaluated its target actor alone")
     below = actors(folder, "eval/below_teacher")  # empty for runs of versions that did not log it
-    online, target = curves["online"], curves["target"] or None  # None: the target actor was not evaluated
-    frames = sorted(set(online) & set(target)) if target else sorted(online)
-    share = {
-        name: None if curve is None else fall_share([(f, curve[f]) for f in frames], teacher)
-        for name, curve in (("online", online), ("target", target))
-    }
-    first = next((f for f in frames if online[f] > teacher), None)
-    after = [] if first is None else [f for f in frames if f > first]
-    # the target actor's falls count from its own first pass, as its fall share does
-    target_first = None if target is None else next((f for f in frames if target[f] > teacher), None)
+    curves["target"] = curves["target"] or None  # None: the target actor was not evaluated
+    first = {name: first_pass(curve, teacher) for name, curve in curves.items()}
+    passes = [f for f in first.values() if f is not None]
+    frames = sorted(set(curves["online"]) | set(curves["target"] or {}))
+    after = [f for f in frames if passes and f > min(passes)]
+
+    def judged(name: str, f: int) -> bool | None:
+        curve = curves[name]
+        if curve is None or f not in curve or first[name] is None or f <= first[name]:
+            return None
+        return curve[f] < teacher
+
+    def holds(name: str, f: int) -> bool:  # evaluated at f, at or above the teacher's return
+        return curves[name] is not None and f in curves[name] and curves[name][f] >= teacher
+
     series = {tag: read_scalar(folder, tag) for tag in (*DIAGNOSTICS, PROMOTED)}
     rows = []
     for f in after:
         row = {
-            "fell": online[f] < teacher,
-            "target_fell": None if target_first is None or f <= target_first else target[f] < teacher,
+            "fell": judged("online", f),
+            "target_fell": judged("target", f),
             "online_below": below["online"].get(f),
             "target_below": below["target"].get(f),
+            # one actor fell where the other held (at or above the teacher there)
+            "online_alone": judged("online", f) is True and holds("target", f),
+            "target_alone": judged("target", f) is True and holds("online", f),
         }
         for tag in DIAGNOSTICS:
             row[tag] = window_mean(series[tag], f - window, f)
         row["promoted"] = last_at(series[PROMOTED], f) - last_at(series[PROMOTED], f - window)
         rows.append(row)
-    # a fall the next evaluation is above the teacher again: a dip of one evaluation, not a collapse
-    for row, following in zip(rows, [*rows[1:], None], strict=True):
-        row["back"] = row["fell"] and following is not None and not following["fell"]
-        row["target_back"] = row["target_fell"] is True and following is not None and following["target_fell"] is False
+    # a fall whose next evaluation is above the teacher again: a dip of one evaluation, not a collapse
+    for row, following in zip(rows, [*after[1:], None], strict=True):
+        for name, flag in (("online", "fell"), ("target", "target_fell")):
+            above = following is not None and following in (curves[name] or {}) and curves[name][following] > teacher
+            row["back" if name == "online" else "target_back"] = row[flag] is True and above
     line = {
         "run": str(folder),
         "teacher": teacher,
-        "passed_at": first,
-        "online": share["online"],
-        "target": share["target"],
-        # the evaluations where both actors are judged (each after its own first pass)
-        "online_only": None if target is None else sum(r["fell"] and r["target_fell"] is False for r in rows),
-        "target_only": None if target is None else sum(r["target_fell"] is True and not r["fell"] for r in rows),
+        "passed_at": first["online"],
+        "target_passed_at": first["target"],
+        # None: not evaluated; else fall_share's (None: never passed)
+        "online": fall_share(sorted(curves["online"].items()), teacher),
+        "target": None if curves["target"] is None else fall_share(sorted(curves["target"].items()), teacher),
+        "target_evaluated": curves["target"] is not None,
+        "online_only": sum(row["online_alone"] for row in rows) if curves["target"] is not None else None,
+        "target_only": sum(row["target_alone"] for row in rows) if curves["target"] is not None else None,
     }
     return line, rows
 
 
-def shown(share: dict | None) -> str:
+def shown(share: dict | None, evaluated: bool = True) -> str:
+    if not evaluated:
+        return "not evaluated"
     if share is None or share["share"] is None:
-        return "n/a"
+        return "never passed"
     return f"{100 * share['share']:.1f}% ({share['falls']}/{share['evaluations']})"
 
 
@@ -153,7 +175,7 @@ def standardized(rows: list[dict]) -> list[dict]:
 
 def report(folders: list[Path], window: int, given_teacher: float | None = None) -> str:
     lines = [
-        "| run | teacher | passed at | fall share: online actor | target actor "
+        "| run | teacher | online actor passed at | fall share: online actor | target actor "
         "| online fell alone | target fell alone |",
         "|---|---|---|---|---|---|---|",
     ]
@@ -163,7 +185,8 @@ def report(folders: list[Path], window: int, given_teacher: float | None = None)
         pooled += standardized(rows)
         lines.append(
             f"| `{line['run']}` | {line['teacher']:.1f} | {line['passed_at'] or '-'} | {shown(line['online'])} "
-            f"| {shown(line['target'])} | {'-' if line['online_only'] is None else line['online_only']} "
+            f"| {shown(line['target'], line['target_evaluated'])} "
+            f"| {'-' if line['online_only'] is None else line['online_only']} "
             f"| {'-' if line['target_only'] is None else line['target_only']} |"
         )
     groups = {}
@@ -174,15 +197,17 @@ def report(folders: list[Path], window: int, given_teacher: float | None = None)
     back = {actor: sum(row[key] for row in pooled) for actor, key in (("online", "back"), ("target", "target_back"))}
     lines += [
         "",
-        f"Back above the teacher by the next evaluation (a dip of one evaluation, {window} frames, not a "
-        f"collapse): {back['online']} of the online actor's {len(online_fell)} falls, {back['target']} of the "
-        f"target actor's {len(target_fell)} (a run's last evaluation has no next).",
+        f"Back above the teacher by the next evaluation (a dip of one evaluation, not a collapse): "
+        f"{back['online']} of the online actor's {len(online_fell)} falls, {back['target']} of the target "
+        f"actor's {len(target_fell)} (a run's last evaluation has no next).",
         "",
-        f"Over the {window}-frame window before each evaluation after the online actor passed: at the online "
-        f"actor's {len(online_fell)} falls against its {len(online_held)} other evaluations, and at the target "
-        f"actor's {len(target_fell)} falls against its {len(target_held)} others after its own first pass (same "
-        "windows). Each value is a z-score within its run: its distance from the run's mean after the pass in "
-        "the run's standard deviations (0 = that run's average), so that runs of different envs pool.",
+        f"Over the {window}-frame window before each evaluation after an actor's first pass: at the online "
+        f"actor's {len(online_fell)} falls against its {len(online_held)} other evaluations after its first pass, "
+        f"and at the target actor's {len(target_fell)} falls against its {len(target_held)} others after its own "
+        "first pass (a fall: below the teacher's return; an actor fell alone where the other was at or above it). "
+        "Each value is a z-score within its run: its distance from the run's mean over its evaluations after "
+        "the first pass of either actor, in the run's population standard deviations (0 = that run's average), "
+        "so that runs of different envs pool.",
         "",
         "| diagnostic | before an online fall | before the online actor's others "
         "| before a target fall | before the target actor's others |",

@@ -51,7 +51,7 @@ def test_falls_of_both_actors_and_the_logs_before_them(tmp_path):
     assert "target actor's 1 falls against its 2 others" in text
     # 30k's fall is back above at 40k; 50k's is the last evaluation; the target's only fall is at 50k
     assert [(row["back"], row["target_back"]) for row in after] == [(True, False), (False, False), (False, False)]
-    assert "by the next evaluation (a dip of one evaluation, 10000 frames, not a collapse): 1 of the online " in text
+    assert "by the next evaluation (a dip of one evaluation, not a collapse): 1 of the online " in text
     assert "actor's 2 falls, 0 of the target actor's 1 (a run's last" in text
 
 
@@ -118,7 +118,7 @@ def test_a_run_that_evaluated_the_online_actor_alone_has_no_target_figures(tmp_p
     assert line["online"] == {"share": 2 / 3, "falls": 2, "evaluations": 3} and line["target"] is None
     assert line["online_only"] is None and [row["fell"] for row in after] == [True, False, True]
     text = falls.report([tmp_path / "run"], window=10_000)
-    assert "| 66.7% (2/3) | n/a | - | - |" in text
+    assert "| 66.7% (2/3) | not evaluated | - | - |" in text
     assert "| `actor/change` | 0.61 (n=2) | -1.22 (n=1) | - | - |" in text
 
 
@@ -134,3 +134,49 @@ def test_an_unfinished_run_needs_its_teachers_return(tmp_path):
         falls.run_rows(tmp_path / "run", window=10_000)
     line, _ = falls.run_rows(tmp_path / "run", window=10_000, given_teacher=100.0)
     assert line["online"]["falls"] == 2
+
+
+def curves_run(folder, online, target):
+    write_run(
+        folder,
+        [
+            *(("eval/return_online", f, v) for f, v in online.items()),
+            *(("eval/return", f, v) for f, v in target.items()),
+        ],
+    )
+    return falls.run_rows(folder, window=10_000)
+
+
+def test_a_target_fall_before_the_online_actors_first_pass_counts_everywhere(tmp_path):
+    """The target passes at 10k and dips at 20k, where the online actor passes: the target's fall is
+    in its fall share, its falls, its dips, and fell alone (the online actor at 150 held)."""
+    line, after = curves_run(
+        tmp_path / "run", {10_000: 50, 20_000: 150, 30_000: 150}, {10_000: 150, 20_000: 40, 30_000: 150}
+    )
+    assert (line["passed_at"], line["target_passed_at"]) == (20_000, 10_000)
+    assert line["target"] == {"share": 0.5, "falls": 1, "evaluations": 2} and line["online"]["falls"] == 0
+    assert [(row["fell"], row["target_fell"]) for row in after] == [(None, True), (False, False)]
+    assert (line["online_only"], line["target_only"]) == (0, 1)
+    text = falls.report([tmp_path / "run"], window=10_000)
+    assert "1 of the target actor's 1 (a run's last" in text
+
+
+def test_fell_alone_needs_the_other_actor_at_or_above_the_teacher(tmp_path):
+    """At 20k the online actor falls (after its pass at 10k) while the target, at its own first pass
+    (120), holds: the online actor fell alone. A next evaluation exactly at the teacher is not back above."""
+    line, after = curves_run(
+        tmp_path / "a", {10_000: 150, 20_000: 40, 30_000: 100}, {10_000: 50, 20_000: 120, 30_000: 150}
+    )
+    assert (line["online_only"], line["target_only"]) == (1, 0)
+    assert [row["back"] for row in after] == [False, False]  # 30k's 100 is not above 100
+    # a target evaluated at every frame but never above the teacher: "never passed", and nothing alone
+    line, _ = curves_run(tmp_path / "b", {10_000: 150, 20_000: 40, 30_000: 150}, {10_000: 50, 20_000: 50, 30_000: 50})
+    assert line["target"] is None and (line["online_only"], line["target_only"]) == (0, 0)
+    assert "| 50.0% (1/2) | never passed | 0 | 0 |" in falls.report([tmp_path / "b"], window=10_000)
+
+
+def test_each_actors_fall_share_reads_its_own_curve(tmp_path):
+    """The target has no 30k evaluation: the online actor's 30k fall still counts (1 of 2)."""
+    line, _ = curves_run(tmp_path / "run", {10_000: 150, 20_000: 150, 30_000: 40}, {10_000: 150, 20_000: 150})
+    assert line["online"] == {"share": 0.5, "falls": 1, "evaluations": 2}
+    assert line["target"] == {"share": 0.0, "falls": 0, "evaluations": 1}
