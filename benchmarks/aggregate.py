@@ -863,13 +863,14 @@ def markdown(
         f"return of eval.episodes episodes), over seeds: mean ± sample std (ddof=1; n/a for one seed) and "
         "its 95% Student-t CI (mean ± t(n - 1) std / sqrt(n); n/a for one seed). "
         "† a seed had fewer evaluations, all of them averaged (see Notes). Best policy: the evaluation of "
-        "the policy each run kept by its own training returns (summary.json's best_policy), mean ± std over "
-        "the seeds that evaluated it (k/n seeds when not all did; - when none did). Final and best: the mean "
+        "the policy each run kept by its own training returns (summary.json's best_policy), mean ± sample std "
+        "over the seeds that evaluated it (k/n seeds when not all did; - when none did). Final and best: the mean "
         "over seeds of each run's last and highest evaluation. vs teacher: headline mean / teacher return. "
         "Frames to pass teacher: the frames at a run's first evaluation above the teacher's return, median "
-        "over the seeds that passed. Fall share: of the evaluations after a run's first one above the "
-        "teacher's return, the share below it, pooled over the seeds that passed (falls/evaluations; n/a "
-        "if none passed). Best headline mean per env and teacher in bold.",
+        "over the seeds that passed (of an even count, the mean of the middle two). Fall share: of the "
+        "evaluations after a run's first one above the teacher's return, the share below it, pooled over the "
+        "seeds that passed (falls/evaluations; n/a if none passed, n/a (0/0) if they passed only at their "
+        "last evaluation). Best headline mean per env and teacher in bold.",
         "",
         *table_lines(table),
     ]
