@@ -108,10 +108,10 @@ def run_rows(folder: Path, window: int, given_teacher: float | None = None) -> t
             "target_fell": judged("target", f),
             "online_below": below["online"].get(f),
             "target_below": below["target"].get(f),
-            # one actor fell where the other held (at or above the teacher there)
-            "online_alone": judged("online", f) is True and holds("target", f),
-            "target_alone": judged("target", f) is True and holds("online", f),
         }
+        # one actor fell where the other held (at or above the teacher there)
+        row["online_alone"] = row["fell"] is True and holds("target", f)
+        row["target_alone"] = row["target_fell"] is True and holds("online", f)
         for tag in DIAGNOSTICS:
             row[tag] = window_mean(series[tag], f - window, f)
         row["promoted"] = last_at(series[PROMOTED], f) - last_at(series[PROMOTED], f - window)
