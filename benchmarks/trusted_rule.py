@@ -9,7 +9,8 @@ four shipped ones (``examples/teachers``): the candidate (teacher labels ``paper
 runs' ``eval/return_online``: training does not depend on the evaluated actor) and the defaults
 (labels ``paper`` and ``shipped``, SAIL), with DAC (label ``paper``) beside them. Per run: whether
 an evaluation passed the teacher, the last-5 mean and the fall share
-(:func:`torchrl_sail.harness.fall_share`), and the best policy's evaluation, reported beside last-5.
+(:func:`torchrl_sail.harness.fall_share`), and the best policy's evaluation, reported beside last-5
+in a table with a row per env, teacher and setting.
 The verdict is ``pending`` until every run the rule needs is finished; meanwhile an interim block
 compares each setting with the defaults on the cells both have. The decision then follows the
 rule's order: the candidate by the first set, then by the second; then the penalty alone; else the
@@ -272,38 +273,46 @@ def decision(candidate: str, penalty: str) -> str:
     return "**Decision: the defaults stay**; the candidate and the penalty alone remain options (neither meets a set)."
 
 
-def cell(values: list[float | None]) -> str:
-    """Mean ± sample std of the values there are, with how many seeds where fewer than five; ``-`` if none."""
-    there = [value for value in values if value is not None]
-    if not there:
+def spread(values: list[float]) -> str:
+    """Mean ± sample std of ``values`` (the mean alone for one value); ``-`` if there are none."""
+    if not values:
         return "-"
-    std = f" ± {statistics.stdev(there):.1f}" if len(there) > 1 else ""
-    seeds = f" ({len(there)} seed{'s' if len(there) > 1 else ''})" if len(there) < len(SEEDS) else ""
-    return f"{statistics.fmean(there):.1f}{std}{seeds}"
+    std = f" ± {statistics.stdev(values):.1f}" if len(values) > 1 else ""
+    return f"{statistics.fmean(values):.1f}{std}"
 
 
 def table(found: dict) -> list[str]:
-    """Per env and teacher (its return), each setting's last-5 and best policy over the seeds finished
-    so far; the penalty alone keeps no best policy (its actor is not the one kept)."""
-    columns = [("candidate", "last5"), ("candidate", "best_policy"), ("penalty", "last5")]
-    columns += [("defaults", "last5"), ("defaults", "best_policy"), ("dac", "last5"), ("dac", "best_policy")]
-    header = " | ".join(
-        f"{name} {'best policy' if measure == 'best_policy' else 'last-5'}" for name, measure in columns
-    )
+    """One row per env, teacher (its return) and setting: the seeds finished so far, how many passed
+    their teacher, last-5, the best policy and the fall share pooled over those seeds. The penalty
+    alone keeps no best policy (its actor is not the one kept); DAC runs with the paper's teachers only."""
     lines = [
-        "Per env and teacher, the mean ± sample std over seeds of each run's last-5, and of its best policy "
-        "(50 episodes, kept by the SAIL authors' rule; not part of the rule); DAC with the paper's teachers only.",
+        "Per env, teacher and setting, over the seeds finished so far: how many passed their teacher; the "
+        "mean ± sample std of each run's last-5 and of its best policy (50 episodes, kept by the SAIL "
+        "authors' rule; not part of the rule); and the fall share pooled over those seeds (the rule pools "
+        "Hopper and Walker2d).",
         "",
-        f"| env | teacher | {header} |",
-        "|---" * (len(columns) + 2) + "|",
+        "| env | teacher | setting | seeds | passed | last-5 | best policy | fall share |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for env in ENVS:
         for teacher in TEACHERS:
-            runs = {name: [results.get((env, teacher, seed)) for seed in SEEDS] for name, results in found.items()}
-            returns = [run.teacher_return for cell_runs in runs.values() for run in cell_runs if run is not None]
+            runs = {
+                name: [results[env, teacher, seed] for seed in SEEDS if (env, teacher, seed) in results]
+                for name, results in found.items()
+                if name != "dac" or teacher == "paper"
+            }
+            returns = [run.teacher_return for setting_runs in runs.values() for run in setting_runs]
             shown = f"{teacher} ({returns[0]:.1f})" if returns else teacher
-            cells = [cell([getattr(run, measure, None) for run in runs[name]]) for name, measure in columns]
-            lines.append(f"| {env} | {shown} | " + " | ".join(cells) + " |")
+            for name, setting_runs in runs.items():
+                best = [run.best_policy for run in setting_runs if run.best_policy is not None]
+                # runs from before the best policy was kept have none: say over how many seeds it is
+                some = f" ({len(best)} of {len(setting_runs)})" if 0 < len(best) < len(setting_runs) else ""
+                falls = [run.falls for run in setting_runs]
+                share = percent(sum(f for f, _ in falls), sum(n for _, n in falls)) if setting_runs else "-"
+                lines.append(
+                    f"| {env} | {shown} | {name} | {len(setting_runs)} | {sum(run.passed for run in setting_runs)} "
+                    f"| {spread([run.last5 for run in setting_runs])} | {spread(best)}{some} | {share} |"
+                )
     return [*lines, ""]
 
 

@@ -120,9 +120,14 @@ def test_rule_on_hand_counted_runs(tmp_path):
     assert "met: fall share 25.0% (20/80), not above the defaults' 25.0% (20/80)" in penalty
     assert "**Verdict: penalty meets neither set.**" in penalty
     assert text.endswith("**Decision: the candidate becomes the default** (it meets the first set).")
-    # the table: every cell's five seeds alike (std 0); the defaults and DAC kept no best policy
-    assert "| Hopper-v4 | paper (100.0) | 200.0 ± 0.0 | - | 170.0 ± 0.0 | 178.0 ± 0.0 | - | 150.0 ± 0.0 | - |" in text
-    assert "| Hopper-v4 | shipped (100.0) | 200.0 ± 0.0 | - | 170.0 ± 0.0 | 178.0 ± 0.0 | - | - | - |" in text
+    # the table: every cell's five seeds alike (std 0); no run kept a best policy; falls per cell:
+    # the online actor and the defaults 1 in each run's 4 evaluations after its pass, DAC none
+    assert "| Hopper-v4 | paper (100.0) | candidate | 5 | 5 | 200.0 ± 0.0 | - | 0.0% (0/20) |" in text
+    assert "| Hopper-v4 | paper (100.0) | penalty | 5 | 5 | 170.0 ± 0.0 | - | 25.0% (5/20) |" in text
+    assert "| Hopper-v4 | paper (100.0) | defaults | 5 | 5 | 178.0 ± 0.0 | - | 25.0% (5/20) |" in text
+    assert "| Hopper-v4 | paper (100.0) | dac | 5 | 5 | 150.0 ± 0.0 | - | 0.0% (0/20) |" in text
+    assert "| Hopper-v4 | shipped (100.0) | defaults | 5 | 5 | 178.0 ± 0.0 | - | 25.0% (5/20) |" in text
+    assert "| Hopper-v4 | shipped (100.0) | dac |" not in text  # DAC runs with the paper's teachers only
 
 
 def test_rule_is_pending_until_every_run_is_there(tmp_path):
@@ -219,9 +224,13 @@ def test_criteria_at_their_boundaries(tmp_path):
     assert "MISSED: Hopper-v4: last-5 150.0 above DAC's 150.0" in candidate_text
     assert "met: fall share on Hopper and Walker2d 5.0% (4/80), at most 5%" in candidate_text
     assert "met: Swimmer-v4: last-5 164.5, not below the defaults' 180.0 - 15.8 = 164.2" in candidate_text
-    # the table: Walker2d's paper seeds 0-3 at 178, seed 4 at 200
-    assert "| Walker2d-v4 | paper (100.0) | 182.4 ± 9.8 |" in text
-    assert "| Swimmer-v4 | paper (100.0) | 164.5 ± 0.0 | - | 170.0 ± 0.0 | 180.0 ± 15.8 | - | 150.0 ± 0.0 | - |" in text
+    # the table: Walker2d's paper seeds 0-3 at 178 (one fall each in 4), seed 4 at 200; Swimmer's
+    # shipped seed 0 never passes (at, not above, its teacher): last-5 (100 + 4 * 200) / 5 = 180, sample
+    # std sqrt((80^2 + 4 * 20^2) / 4) = 44.7, and none of its evaluations is counted for falls
+    assert "| Walker2d-v4 | paper (100.0) | candidate | 5 | 5 | 182.4 ± 9.8 | - | 20.0% (4/20) |" in text
+    assert "| Swimmer-v4 | paper (100.0) | candidate | 5 | 5 | 164.5 ± 0.0 | - | 0.0% (0/20) |" in text
+    assert "| Swimmer-v4 | paper (100.0) | defaults | 5 | 5 | 180.0 ± 15.8 | - | 0.0% (0/20) |" in text
+    assert "| Swimmer-v4 | shipped (100.0) | candidate | 5 | 4 | 180.0 ± 44.7 | - | 0.0% (0/16) |" in text
 
 
 def test_a_fall_share_with_no_evaluation_after_a_pass_meets_no_criterion(tmp_path):
@@ -238,9 +247,14 @@ def test_best_policy_is_reported_beside_last5(tmp_path):
     (tmp_path / "trusted" / "matrix.json").write_text("{}")
     for seed, best in ((0, 210.0), (1, 230.0)):
         write_run(tmp_path, "paper-trusted", "Hopper-v4", "sail", seed, CANDIDATE_RETURNS, best_policy=best)
+    # mean 220, sample std sqrt(2 * 10^2 / 1) = 14.1, two of five seeds, 4 evaluations each counted for
+    # falls; a defaults seed from before the best policy was kept, beside one with it: over one of two
+    write_run(tmp_path, "paper", "Hopper-v4", "sail", 0, DEFAULT_RETURNS)
+    write_run(tmp_path, "paper", "Hopper-v4", "sail", 1, DEFAULT_RETURNS, best_policy=190.0)
     text = rule.report([tmp_path])
-    # mean 220, sample std sqrt(2 * 10^2 / 1) = 14.1, two of five seeds
-    assert "| Hopper-v4 | paper (100.0) | 200.0 ± 0.0 (2 seeds) | 220.0 ± 14.1 (2 seeds) | - | - | - | - | - |" in text
+    assert "| Hopper-v4 | paper (100.0) | candidate | 2 | 2 | 200.0 ± 0.0 | 220.0 ± 14.1 | 0.0% (0/8) |" in text
+    assert "| Hopper-v4 | paper (100.0) | defaults | 2 | 2 | 178.0 ± 0.0 | 190.0 (1 of 2) | 25.0% (2/8) |" in text
+    assert "| Hopper-v4 | paper (100.0) | dac | 0 | 0 | - | - | - |" in text
     assert text.endswith("**Decision: pending** (the verdicts wait for every run).")
 
 
