@@ -41,7 +41,8 @@ without logs, a results copy put back under ``--out`` to mark its cell done, giv
 
 ``--status`` prints, for the stages asked (``--envs`` and ``--seeds`` too), how many runs under
 ``--out`` are done, started (a checkpoint saved, which ``resume=auto`` continues from) and not
-started, per teacher label and method, then each started run's checkpoint frame and last evaluation.
+started, per teacher label and method, then each started run's checkpoint frame and last evaluation,
+and the frames left with about how long ``--jobs`` runs at a time take to train them.
 """
 
 from __future__ import annotations
@@ -53,6 +54,7 @@ import math
 import os
 import shlex
 import shutil
+import statistics
 import subprocess
 import sys
 import time
@@ -352,20 +354,26 @@ def finished(run_dir: Path) -> bool:
     return done.get("offline", False) or done.get("frames", 0) >= done.get("total_frames", 1)
 
 
-def status(cells: list[Cell], out: Path) -> list[str]:
+def status(cells: list[Cell], out: Path, jobs: int = 2) -> list[str]:
     """Where ``cells`` stand under ``out``, as report lines: per stage, then per teacher label and
     method, how many runs are done (their whole budget, :func:`finished`), started (a checkpoint
     saved; ``resume=auto`` continues from it) and not started; then each started run with its
-    checkpoint's frame and its last evaluation."""
+    checkpoint's frame and its last evaluation; then the frames left and, timed by the finished runs
+    that trained in one start, about how long ``jobs`` runs at a time take to train them
+    (:func:`time_left`)."""
     groups: dict[tuple, list[str]] = {}
-    started = []
+    started, left, paces = [], [], []
     for cell in cells:
         run_dir = run_dir_of(cell, out)
         if finished(run_dir):
             state, frames = "done", None
+            summary = json.loads((run_dir / "summary.json").read_text())
+            if len(summary.get("starts", [])) == 1:  # a resumed run's pace counts the frames it trained twice
+                paces.append(summary.get("frames_per_second"))
         else:
             frames = checkpoint_frames(run_dir)
             state = "not started" if frames is None else "started"
+            left.append(cell.frames - (frames or 0))
         groups.setdefault((cell.stage,), []).append(state)
         groups.setdefault((cell.stage, cell.teacher, cell.method), []).append(state)
         if state == "started":
@@ -377,7 +385,27 @@ def status(cells: list[Cell], out: Path) -> list[str]:
         counts = ", ".join(f"{states.count(s)} {s}" for s in ("done", "started", "not started") if s in states)
         name = key[0] if len(key) == 1 else f"  {key[1]} {key[2]}"
         lines.append(f"{name}: {len(states)} runs, {counts}")
-    return lines + (["started (resume=auto continues each from its checkpoint):", *started] if started else [])
+    if started:
+        lines += ["started (resume=auto continues each from its checkpoint):", *started]
+    return lines + time_left(left, [pace for pace in paces if pace], jobs)
+
+
+def time_left(left: list[int], paces: list[float], jobs: int) -> list[str]:
+    """The frames ``left`` (one entry per unfinished run) and, at the median of ``paces`` (finished
+    runs' frames per second, each run on its own) with ``jobs`` runs at a time, about how many hours
+    they take: the frames over ``jobs`` runs' pace, and never less than the longest run alone. A run
+    that starts over (a new machine) adds to it."""
+    if not left:
+        return []
+    line = f"left: {sum(left)} frames in {len(left)} runs"
+    if not paces:
+        return [line + " (no run here finished in one start, to time them by)"]
+    pace = statistics.median(paces)
+    hours = max(sum(left) / (pace * min(jobs, len(left))), max(left) / pace) / 3600
+    return [
+        f"{line}; about {hours:.1f} h at {jobs} runs at a time, each at {pace:.1f} frames/s (the median "
+        f"frames_per_second of the {len(paces)} run{'s' if len(paces) > 1 else ''} here that finished in one start)"
+    ]
 
 
 def collect(
@@ -512,7 +540,7 @@ def main(argv: list[str] | None = None) -> int:
     if not cells:
         parser.error(f"--stages {' '.join(stages)} has no cell with these --envs and --seeds")
     if args.status:
-        print("\n".join(status(cells, out)))
+        print("\n".join(status(cells, out, args.jobs)))
         return 0
     if any(c.teacher.startswith("paper") for c in cells):  # --stages weak alone needs no paper teacher
         if args.teachers_dir is None:

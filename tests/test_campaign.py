@@ -462,10 +462,32 @@ def test_status_counts_done_started_and_waiting_runs_and_refuses_an_unreadable_c
         "started (resume=auto continues each from its checkpoint):",
         "  ant/paper/Ant-v4/dac/seed0: checkpoint at 50000 of 300000 frames, evaluated 901.5 at 60000",
         "  ant/paper-nocontact/Ant-v4/sail/seed1: checkpoint at 75000 of 300000 frames",
+        # 9 runs of 300k, and 250k and 225k left of the started ones; the done run records no start
+        "left: 3175000 frames in 11 runs (no run here finished in one start, to time them by)",
     ]
+    # timed by the done run, trained in one start at 50 frames/s: 3175000 / (50 * 2) s = 8.8 h
+    (done / "summary.json").write_text(
+        json.dumps({"frames": 300_000, "total_frames": 300_000, "starts": [{"frames": 0}], "frames_per_second": 50.0})
+    )
+    assert campaign.main(["--out", str(out), "--stages", "ant", "--status", "--jobs", "2"]) == 0
+    assert capsys.readouterr().out.splitlines()[-1] == (
+        "left: 3175000 frames in 11 runs; about 8.8 h at 2 runs at a time, each at 50.0 frames/s "
+        "(the median frames_per_second of the 1 run here that finished in one start)"
+    )
     (Path(str(run).format("paper", "dac", 0)) / "checkpoint" / "manifest.json").write_text("{")
     with pytest.raises(ValueError, match=r"dac/seed0/checkpoint/manifest.json: no readable run component"):
         campaign.main(["--out", str(out), "--stages", "ant", "--status"])
+
+
+def test_time_left_is_never_less_than_the_longest_run_alone():
+    # median pace 50: two runs at once train 400k frames in 4000 s, but the 300k run alone takes 6000 s
+    assert campaign.time_left([300_000, 100_000], [40.0, 60.0, 50.0], jobs=4) == [
+        "left: 400000 frames in 2 runs; about 1.7 h at 4 runs at a time, each at 50.0 frames/s "
+        "(the median frames_per_second of the 3 runs here that finished in one start)"
+    ]
+    # four equal runs, two at a time: 4 * 90k / (2 * 50) s = 1.0 h
+    assert "about 1.0 h at 2 runs" in campaign.time_left([90_000] * 4, [50.0], jobs=2)[0]
+    assert campaign.time_left([], [50.0], jobs=2) == []
 
 
 def test_ant_stage_runs_sail_and_dac_on_the_recorded_and_the_reproduced_columns(tmp_path, capsys):
