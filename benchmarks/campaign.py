@@ -63,7 +63,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from run_matrix import REPO, Teacher, record_matrix, script_for  # noqa: E402
+from run_matrix import REPO, Teacher, learners, record_matrix, script_for  # noqa: E402
 
 from torchrl_sail.harness import checkpoint_frames, native_bf16_matmul, read_scalar  # noqa: E402
 
@@ -368,12 +368,14 @@ def status(cells: list[Cell], out: Path, jobs: int = 2) -> list[str]:
         if finished(run_dir):
             state, frames = "done", None
             summary = json.loads((run_dir / "summary.json").read_text())
-            if len(summary.get("starts", [])) == 1:  # a resumed run's pace counts the frames it trained twice
+            # a resumed run's frames_per_second times its last start alone, perhaps short or on another machine
+            if len(summary.get("starts", [])) == 1:
                 paces.append(summary.get("frames_per_second"))
         else:
             frames = checkpoint_frames(run_dir)
             state = "not started" if frames is None else "started"
-            left.append(cell.frames - (frames or 0))
+            if learners()[cell.method] != "bc":  # BC trains on the demonstrations alone: no frames, seconds
+                left.append(cell.frames - (frames or 0))
         groups.setdefault((cell.stage,), []).append(state)
         groups.setdefault((cell.stage, cell.teacher, cell.method), []).append(state)
         if state == "started":
@@ -391,20 +393,21 @@ def status(cells: list[Cell], out: Path, jobs: int = 2) -> list[str]:
 
 
 def time_left(left: list[int], paces: list[float], jobs: int) -> list[str]:
-    """The frames ``left`` (one entry per unfinished run) and, at the median of ``paces`` (finished
-    runs' frames per second, each run on its own) with ``jobs`` runs at a time, about how many hours
-    they take: the frames over ``jobs`` runs' pace, and never less than the longest run alone. A run
-    that starts over (a new machine) adds to it."""
+    """The frames ``left`` (one entry per unfinished run that collects frames) and, at the median of
+    ``paces`` (finished runs' frames per second, each run on its own) with ``jobs`` runs at a time (at
+    most as many as are left), about how many hours they take: the frames over that many runs' pace,
+    and never less than the longest run alone. A run that starts over (a new machine) adds to it."""
     if not left:
         return []
     line = f"left: {sum(left)} frames in {len(left)} runs"
     if not paces:
-        return [line + " (no run here finished in one start, to time them by)"]
-    pace = statistics.median(paces)
-    hours = max(sum(left) / (pace * min(jobs, len(left))), max(left) / pace) / 3600
+        return [line + " (no finished run here records a single start and its frames_per_second)"]
+    pace, at_once = statistics.median(paces), min(jobs, len(left))
+    hours = max(sum(left) / (pace * at_once), max(left) / pace) / 3600
     return [
-        f"{line}; about {hours:.1f} h at {jobs} runs at a time, each at {pace:.1f} frames/s (the median "
-        f"frames_per_second of the {len(paces)} run{'s' if len(paces) > 1 else ''} here that finished in one start)"
+        f"{line}; about {hours:.1f} h at {at_once} run{'s' if at_once > 1 else ''} at a time, each at "
+        f"{pace:.1f} frames/s (the median frames_per_second of the {len(paces)} "
+        f"run{'s' if len(paces) > 1 else ''} here that finished in one start)"
     ]
 
 
@@ -459,6 +462,13 @@ def collect(
             shutil.copy2(run_dir / "scalars.csv", target / "scalars.csv")
         copied.append(target)
     return copied
+
+
+def runs_at_a_time(text: str) -> int:
+    """``--jobs``: a whole number, at least 1."""
+    if not text.isdigit() or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: at least 1 run at a time")
+    return int(text)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -516,7 +526,7 @@ def main(argv: list[str] | None = None) -> int:
         metavar="KEY=VALUE",
         help="Hydra overrides for every run, e.g. device=cuda optim.cudagraphs=true",
     )
-    parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--jobs", type=runs_at_a_time, default=2, help="how many runs train at a time")
     parser.add_argument("--dry-run", action="store_true")
     parser.add_argument("--collect", type=Path, metavar="DEST", help="copy the finished runs' results, run nothing")
     parser.add_argument(

@@ -288,10 +288,11 @@ def table(found: dict) -> list[str]:
     lines = [
         "Per env, teacher and setting, over the seeds finished so far: how many passed their teacher; the "
         "mean ± sample std of each run's last-5 and of its best policy (50 episodes, kept by the SAIL "
-        "authors' rule; not part of the rule); and the fall share pooled over those seeds (the rule pools "
-        "Hopper and Walker2d).",
+        "authors' rule; not part of the rule; `-` where the setting keeps none, as the penalty alone, or "
+        "its runs predate it, with how many seeds have one where only some do); and the fall share pooled "
+        "over those seeds (the rule counts falls on Hopper and Walker2d only, pooled over both teachers).",
         "",
-        "| env | teacher | setting | seeds | passed | last-5 | best policy | fall share |",
+        "| env | teacher | setting | seeds | passed teacher | last-5 | best policy | fall share |",
         "|---|---|---|---|---|---|---|---|",
     ]
     for env in ENVS:

@@ -463,7 +463,7 @@ def test_status_counts_done_started_and_waiting_runs_and_refuses_an_unreadable_c
         "  ant/paper/Ant-v4/dac/seed0: checkpoint at 50000 of 300000 frames, evaluated 901.5 at 60000",
         "  ant/paper-nocontact/Ant-v4/sail/seed1: checkpoint at 75000 of 300000 frames",
         # 9 runs of 300k, and 250k and 225k left of the started ones; the done run records no start
-        "left: 3175000 frames in 11 runs (no run here finished in one start, to time them by)",
+        "left: 3175000 frames in 11 runs (no finished run here records a single start and its frames_per_second)",
     ]
     # timed by the done run, trained in one start at 50 frames/s: 3175000 / (50 * 2) s = 8.8 h
     (done / "summary.json").write_text(
@@ -480,14 +480,34 @@ def test_status_counts_done_started_and_waiting_runs_and_refuses_an_unreadable_c
 
 
 def test_time_left_is_never_less_than_the_longest_run_alone():
-    # median pace 50: two runs at once train 400k frames in 4000 s, but the 300k run alone takes 6000 s
+    # median pace 50: two runs (of the 4 --jobs allows) train 400k frames in 4000 s, but the 300k run
+    # alone takes 6000 s
     assert campaign.time_left([300_000, 100_000], [40.0, 60.0, 50.0], jobs=4) == [
-        "left: 400000 frames in 2 runs; about 1.7 h at 4 runs at a time, each at 50.0 frames/s "
+        "left: 400000 frames in 2 runs; about 1.7 h at 2 runs at a time, each at 50.0 frames/s "
         "(the median frames_per_second of the 3 runs here that finished in one start)"
     ]
     # four equal runs, two at a time: 4 * 90k / (2 * 50) s = 1.0 h
     assert "about 1.0 h at 2 runs" in campaign.time_left([90_000] * 4, [50.0], jobs=2)[0]
+    # one run left: one at a time, whatever --jobs says
+    assert "about 0.5 h at 1 run at a time" in campaign.time_left([90_000], [50.0], jobs=2)[0]
     assert campaign.time_left([], [50.0], jobs=2) == []
+
+
+def test_status_leaves_offline_runs_out_of_the_frames_left_and_refuses_jobs_below_one(tmp_path, capsys):
+    """The main stage's HalfCheetah seed 0: SAIL, DAC, BC, TD3 on the delayed reward and the published
+    DAC, none started; BC trains on the demonstrations alone, so the other four runs' 300k frames each
+    are left."""
+    args = ["--out", str(tmp_path), "--stages", "main", "--envs", "HalfCheetah-v4", "--seeds", "0", "--status"]
+    assert campaign.main(args) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert "  paper bc: 1 runs, 1 not started" in lines
+    assert (
+        lines[-1]
+        == "left: 1200000 frames in 4 runs (no finished run here records a single start and its frames_per_second)"
+    )
+    with pytest.raises(SystemExit):
+        campaign.main([*args, "--jobs", "0"])
+    assert "argument --jobs: '0': at least 1 run at a time" in capsys.readouterr().err
 
 
 def test_ant_stage_runs_sail_and_dac_on_the_recorded_and_the_reproduced_columns(tmp_path, capsys):
