@@ -45,6 +45,7 @@ MIN_VS_TEACHER = {"Hopper-v4": 1.5, "Walker2d-v4": 1.5, "Swimmer-v4": 1.5, "Half
 ENVS = tuple(MIN_VS_TEACHER)
 FALL_ENVS = ("Hopper-v4", "Walker2d-v4")  # where a fall ends an episode
 MAX_FALL_SHARE = 0.05
+LATE = 10_000  # a best policy kept in a run's last LATE frames is close to its last actor
 # What each setting's runs were run with; an older run's config that lacks a key ran at its default then
 SETTINGS = {
     "candidate": {"optim.actor_preactivation_coef": 0.001, "eval.actor": "target", "eval.other_actor": True},
@@ -65,6 +66,7 @@ class Result:
     teacher_return: float
     evals: list[tuple[int, float]]
     best_policy: float | None = None  # the kept policy's 50-episode return (the penalty alone keeps none)
+    best_policy_frames: int | None = None  # the frame it was kept at
 
     @property
     def passed(self) -> bool:
@@ -145,7 +147,8 @@ def settings(roots: list[Path]) -> dict[str, dict[tuple[str, str, int], Result]]
                 f"teacher return {first[0]} in {first[1]} but {run.teacher_return} in {folder}: "
                 f"the {key[1]} teacher of {key[0]} must be one file"
             )
-        found[setting][key] = Result(*key, run.teacher_return, evals, run.best_policy_return)
+        kept = ((run.summary or {}).get("best_policy") or {}).get("frames")
+        found[setting][key] = Result(*key, run.teacher_return, evals, run.best_policy_return, kept)
         if setting == "candidate":
             online = sorted(dict(read_scalar(folder, "eval/return_online")).items())
             if online:
@@ -314,7 +317,34 @@ def table(found: dict) -> list[str]:
                     f"| {env} | {shown} | {name} | {len(setting_runs)} | {sum(run.passed for run in setting_runs)} "
                     f"| {spread([run.last5 for run in setting_runs])} | {spread(best)}{some} | {share} |"
                 )
-    return [*lines, ""]
+    return [*lines, "", *kept_policies(found)]
+
+
+def kept_policies(found: dict) -> list[str]:
+    """Where each setting's runs kept their best policy: how many within the last :data:`LATE` frames
+    of the run, below their own last-5, and below their teacher."""
+    lines = []
+    for name, results in found.items():
+        kept = [run for run in results.values() if run.best_policy is not None and run.best_policy_frames is not None]
+        if not kept:
+            continue
+        late = sum(run.best_policy_frames > FRAMES - LATE for run in kept)
+        below_last5 = sum(run.best_policy < run.last5 for run in kept)
+        below_teacher = sum(run.best_policy < run.teacher_return for run in kept)
+        lines.append(
+            f"- {name}: of its {len(kept)} runs with a best policy, {late} kept it in the last {LATE // 1000}k "
+            f"frames; it is below the run's last-5 in {below_last5} and below the teacher in {below_teacher}."
+        )
+    if not lines:
+        return []
+    return [
+        "Where the best policy was kept. The authors' rule keeps the policy at the highest mean of the last "
+        "100 training episodes (up to 100k frames: an episode lasts at most 1000), so where that mean is "
+        "still climbing at the end of a run, the policy kept is close to the last one, fallen or not.",
+        "",
+        *lines,
+        "",
+    ]
 
 
 def report(roots: list[Path]) -> str:

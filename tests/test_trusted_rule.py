@@ -28,6 +28,7 @@ def write_run(
     stage="trusted",
     teacher=TEACHER,
     best_policy=None,
+    kept_at=None,
     config=None,
 ):
     """A collected run folder under ``root/<stage>`` (a campaign stage): evaluations every 10k frames,
@@ -49,6 +50,8 @@ def write_run(
     summary = {"env": env, "frames": frames, "total_frames": frames, "teacher_return": teacher}
     if best_policy is not None:
         summary["best_policy"] = {"eval_return": best_policy}
+        if kept_at is not None:
+            summary["best_policy"]["frames"] = kept_at
     (folder / "summary.json").write_text(json.dumps(summary))
     rows = ["tag,frames,value"]
     rows += [f"eval/return,{10_000 * (i + 1)},{value}" for i, value in enumerate(returns)]
@@ -256,6 +259,25 @@ def test_best_policy_is_reported_beside_last5(tmp_path):
     assert "| Hopper-v4 | paper (100.0) | defaults | 2 | 2 | 178.0 ± 0.0 | 190.0 (1 of 2) | 25.0% (2/8) |" in text
     assert "| Hopper-v4 | paper (100.0) | dac | 0 | 0 | - | - | - |" in text
     assert text.endswith("**Decision: pending** (the verdicts wait for every run).")
+    assert "Where the best policy was kept" not in text  # no run says the frame it kept its policy at
+
+
+def test_where_the_best_policy_was_kept(tmp_path):
+    (tmp_path / "trusted").mkdir(parents=True)
+    (tmp_path / "trusted" / "matrix.json").write_text("{}")
+    # last-5 200, teacher 100: kept at the end above both; late and below last-5; early and below both;
+    # at 290k exactly, not in the last 10k frames
+    for seed, best, frames in ((0, 250.0, 300_000), (1, 150.0, 295_000), (2, 90.0, 280_000), (3, 210.0, 290_000)):
+        write_run(
+            tmp_path, "paper-trusted", "Hopper-v4", "sail", seed, CANDIDATE_RETURNS, best_policy=best, kept_at=frames
+        )
+    write_run(tmp_path, "paper", "Hopper-v4", "sail", 0, DEFAULT_RETURNS, best_policy=50.0)  # frame not recorded
+    text = rule.report([tmp_path])
+    assert (
+        "- candidate: of its 4 runs with a best policy, 2 kept it in the last 10k frames; it is below the run's "
+        "last-5 in 2 and below the teacher in 1." in text
+    )
+    assert "- defaults:" not in text.split("Where the best policy was kept")[1].split("###")[0]
 
 
 @pytest.mark.parametrize(
