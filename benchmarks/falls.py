@@ -201,6 +201,16 @@ def report(folders: list[Path], window: int, given_teacher: float | None = None)
         f"{back['online']} of the online actor's {len(online_fell)} falls, {back['target']} of the target "
         f"actor's {len(target_fell)} (a run's last evaluation has no next).",
         "",
+        *(
+            [
+                f"Both actors below the teacher at the same evaluation: "
+                f"{sum(row['fell'] is True for row in target_fell)} of the target actor's {len(target_fell)} "
+                "falls came with a fall of the online actor.",
+                "",
+            ]
+            if target_fell
+            else []
+        ),
         f"Over the {window}-frame window before each evaluation after an actor's first pass: at the online "
         f"actor's {len(online_fell)} falls against its {len(online_held)} other evaluations after its first pass, "
         f"and at the target actor's {len(target_fell)} falls against its {len(target_held)} others after its own "
