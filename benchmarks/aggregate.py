@@ -572,6 +572,9 @@ def sort_methods(methods) -> list[str]:
     return sorted(set(methods), key=key)
 
 
+STANDING_FRAMES = 300_000  # the budget of the README's claims on SAIL against DAC (:func:`standing`)
+
+
 def frames_label(frames: int) -> str:
     """``300000`` -> ``300k``, ``1000000`` -> ``1M``."""
     if frames % 1_000_000 == 0:
@@ -1135,6 +1138,72 @@ def cell_command(group: Group) -> str:
     return " ".join(args)
 
 
+def listed(items: list[str]) -> str:
+    """``a``, ``a and b``, ``a, b and c``."""
+    return items[0] if len(items) == 1 else f"{', '.join(items[:-1])} and {items[-1]}"
+
+
+def group_of(groups: dict, env: str, teacher: str, method: str, frames: int) -> Group | None:
+    """The group of ``method``'s runs of ``frames`` frames (whatever its budget label) with ``teacher`` on ``env``."""
+    return next(
+        (
+            group
+            for (e, t, label), group in groups.items()
+            if (e, t) == (env, teacher) and method_name(label) == method and total_frames(group.runs[0]) == frames
+        ),
+        None,
+    )
+
+
+def passes_phrase(method: str, groups: list[Group]) -> str:
+    """How many seeds of ``method`` passed their teacher, per env: every seed, k of n, none."""
+    counts = [
+        (group.env, sum(run.passed_teacher_at() is not None for run in group.runs), len(group.runs)) for group in groups
+    ]
+    every = [env for env, passed, n in counts if passed == n]
+    parts = [f"on every seed on {listed(every)}"] if every else []
+    some = {}  # (passed, seeds) -> envs, in env order
+    for env, passed, n in counts:
+        if passed < n:
+            some.setdefault((passed, n), []).append(env)
+    parts += [f"on {passed or 'none'} of {n} seeds on {listed(envs)}" for (passed, n), envs in some.items()]
+    return (
+        f"`{method}` passes its teacher {parts[0] if len(parts) == 1 else ', '.join(parts[:-1]) + ', and ' + parts[-1]}"
+    )
+
+
+def standing(groups: dict, teacher: str, envs: list[str], first: str = "sail", second: str = "dac") -> list[str]:
+    """The README's claims on ``first`` against ``second`` (their runs of :data:`STANDING_FRAMES` frames with
+    ``teacher``), made from the runs so that they follow the seeds collected: on which envs every seed
+    passed its teacher, and where every seed of one ends (last-5) above every seed of the other."""
+    pairs = [
+        (
+            env,
+            group_of(groups, env, teacher, first, STANDING_FRAMES),
+            group_of(groups, env, teacher, second, STANDING_FRAMES),
+        )
+        for env in envs
+    ]
+    pairs = [(env, a, b) for env, a, b in pairs if a is not None and b is not None]
+    if not pairs:
+        return []
+    above = [env for env, a, b in pairs if min(a.values) > max(b.values)]
+    below = [env for env, a, b in pairs if max(a.values) < min(b.values)]
+    overlap = [env for env, _, _ in pairs if env not in above + below]
+    order = []
+    if above:
+        order.append(f"every `{first}` seed ends above every `{second}` seed on {listed(above)}")
+    if below:
+        order.append(f"every `{second}` seed ends above every `{first}` seed on {listed(below)}")
+    if overlap:
+        order.append(f"their seeds overlap on {listed(overlap)}")
+    text = (
+        f"At {frames_label(STANDING_FRAMES)} frames, {passes_phrase(first, [a for _, a, _ in pairs])}; "
+        f"{passes_phrase(second, [b for _, _, b in pairs])}. By last-5, {'; '.join(order)}."
+    )
+    return [text[0].upper() + text[1:], ""]
+
+
 def readme_section(groups: dict, teacher: str, figure: str, report: str = "results.md") -> str:
     """The README's results section for the runs of ``teacher`` (see the module docstring); ``figure``
     and ``report`` (the aggregate's ``results.md``, where the notes are) as links from the README."""
@@ -1194,6 +1263,7 @@ def readme_section(groups: dict, teacher: str, figure: str, report: str = "resul
         "",
         *lines,
         "",
+        *standing(groups, teacher, envs),
         *(
             [f"Notes on these runs ({len(notes)}: fewer evaluations, other settings): [the report]({report}).", ""]
             if notes

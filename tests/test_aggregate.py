@@ -876,3 +876,49 @@ def test_paper_comparison_lays_out_table1_figure2_and_figures34(tmp_path, monkey
         [["dac", "sail (1M)", "sail (300k)"]],
         [["sail (1M)", "sail (300k)", "sail_onpolicy"]],
     ], panels
+
+
+def standing_run(env, method, seed, last5, passed=True):
+    """A finished 300k-frame run of the paper's teacher (return 100): five evaluations at ``last5``, one of
+    them above the teacher only if ``passed``."""
+    values = [last5] * 5 if passed else [min(last5, 90.0)] * 5
+    return aggregate.Run(
+        folder=Path(f"/runs/{env}/{method}/seed{seed}"),
+        env=env,
+        method=method,
+        seed=seed,
+        teacher="paper",
+        config={"collector": {"total_frames": 300_000}},
+        summary={"teacher_return": 100.0},
+        curve=[(10_000 * (i + 1), value) for i, value in enumerate(values)],
+    )
+
+
+def test_standing_says_who_passed_and_who_ends_above_from_the_runs():
+    runs = [
+        # Hopper: sail 300, 500 above dac 200, 250; Walker2d: they overlap (sail 150, 400; dac 300);
+        # Swimmer: dac 400 above sail 200; HalfCheetah: sail 1 of 2 passed, dac none of 2, sail's 120 and 90
+        # above dac's 80 and 80; Ant: sail alone, not compared
+        *(standing_run("Hopper-v4", "sail", s, v) for s, v in ((0, 300.0), (1, 500.0))),
+        *(standing_run("Hopper-v4", "dac", s, v) for s, v in ((0, 200.0), (1, 250.0))),
+        *(standing_run("Walker2d-v4", "sail", s, v) for s, v in ((0, 150.0), (1, 400.0))),
+        standing_run("Walker2d-v4", "dac", 0, 300.0),
+        standing_run("Swimmer-v4", "sail", 0, 200.0),
+        standing_run("Swimmer-v4", "dac", 0, 400.0),
+        standing_run("HalfCheetah-v4", "sail", 0, 120.0),
+        standing_run("HalfCheetah-v4", "sail", 1, 95.0, passed=False),
+        *(standing_run("HalfCheetah-v4", "dac", s, 80.0, passed=False) for s in (0, 1)),
+        standing_run("Ant-v4", "sail", 0, 500.0),
+    ]
+    groups, _ = aggregate.group_runs(runs)
+    envs = ["HalfCheetah-v4", "Swimmer-v4", "Hopper-v4", "Walker2d-v4", "Ant-v4"]
+    assert aggregate.standing(groups, "paper", envs) == [
+        "At 300k frames, `sail` passes its teacher on every seed on Swimmer-v4, Hopper-v4 and Walker2d-v4, and "
+        "on 1 of 2 seeds on HalfCheetah-v4; `dac` passes its teacher on every seed on Swimmer-v4, Hopper-v4 and "
+        "Walker2d-v4, and on none of 2 seeds on HalfCheetah-v4. By last-5, every `sail` seed ends above every "
+        "`dac` seed on HalfCheetah-v4 and Hopper-v4; every `dac` seed ends above every `sail` seed on "
+        "Swimmer-v4; their seeds overlap on Walker2d-v4.",
+        "",
+    ]
+    # runs of another budget or teacher say nothing
+    assert aggregate.standing(groups, "shipped", envs) == []
