@@ -146,6 +146,27 @@ def test_rule_is_pending_until_every_run_is_there(tmp_path):
     assert "- fall share on Hopper and Walker2d: 0.0% (0/76) against the defaults' 25.0% (19/76);" in candidate
     assert "- last-5 above the defaults' on 39 of 39 cells." in candidate  # 200 against 178
     assert "- last-5 above the defaults' on 0 of 39 cells." in penalty  # 170 against 178
+    # the candidate has fallen nowhere; the penalty alone: 19 falls in 76, and the one run to come counts at
+    # most 300k / 10k - 1 = 29 evaluations: 19 / (76 + 29) = 18.1% at best, above 5%
+    assert "out of reach" not in candidate
+    assert (
+        "- fall share on Hopper and Walker2d at most 5%: missed, as it is at least 18.1% (19/105): 19 falls in 76 "
+        "evaluations so far, and 1 run to come that counts at most 29, all without a fall." in penalty
+    )
+
+
+def test_the_first_set_out_of_reach_before_every_run_is_in(tmp_path):
+    """One Hopper candidate run that passed and fell 2 of 27 times (7.4%), a Swimmer one that never passed;
+    the 19 Hopper and Walker2d runs to come could bring the share down to 2 / (27 + 19 * 29) = 0.3%: in reach."""
+    (tmp_path / "trusted").mkdir(parents=True)
+    (tmp_path / "trusted" / "matrix.json").write_text("{}")
+    returns = [50] + [200] * 26 + [90, 90]  # passes at 20k, then 27 counted, 2 falls
+    write_run(tmp_path, "paper-trusted", "Hopper-v4", "sail", 0, returns)
+    write_run(tmp_path, "paper-trusted", "Swimmer-v4", "sail", 0, [50] * 6)
+    text = rule.report([tmp_path]).split("### penalty")[0]
+    assert "Already out of reach for the candidate, whatever its runs to come (the first set):" in text
+    assert "- every run passes its teacher: missed, as Swimmer-v4 paper seed 0 never passed." in text
+    assert "fall share on Hopper and Walker2d at most 5%: missed" not in text
 
 
 def candidate_and_default(root, env, default_seed) -> str:
