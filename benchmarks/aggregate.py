@@ -572,9 +572,6 @@ def sort_methods(methods) -> list[str]:
     return sorted(set(methods), key=key)
 
 
-STANDING_FRAMES = 300_000  # the budget of the README's claims on SAIL against DAC (:func:`standing`)
-
-
 def frames_label(frames: int) -> str:
     """``300000`` -> ``300k``, ``1000000`` -> ``1M``."""
     if frames % 1_000_000 == 0:
@@ -1166,10 +1163,16 @@ def passes_phrase(method: str, groups: list[Group]) -> str:
     for env, passed, n in counts:
         if passed < n:
             some.setdefault((passed, n), []).append(env)
-    parts += [f"on {passed or 'none'} of {n} seeds on {listed(envs)}" for (passed, n), envs in some.items()]
+    parts += [
+        f"on {passed or 'none'} of {n} seed{'s' if n > 1 else ''} on {listed(envs)}"
+        for (passed, n), envs in some.items()
+    ]
     return (
         f"`{method}` passes its teacher {parts[0] if len(parts) == 1 else ', '.join(parts[:-1]) + ', and ' + parts[-1]}"
     )
+
+
+STANDING_FRAMES = 300_000  # the budget of the README's claims on SAIL against DAC
 
 
 def standing(groups: dict, teacher: str, envs: list[str], first: str = "sail", second: str = "dac") -> list[str]:
@@ -1201,7 +1204,7 @@ def standing(groups: dict, teacher: str, envs: list[str], first: str = "sail", s
         f"At {frames_label(STANDING_FRAMES)} frames, {passes_phrase(first, [a for _, a, _ in pairs])}; "
         f"{passes_phrase(second, [b for _, _, b in pairs])}. By last-5, {'; '.join(order)}."
     )
-    return [text[0].upper() + text[1:], ""]
+    return [text, ""]
 
 
 def readme_section(groups: dict, teacher: str, figure: str, report: str = "results.md") -> str:

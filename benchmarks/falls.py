@@ -18,7 +18,8 @@ the target actor), ``sail/q_mean``, ``sail/d_reward_mean``, ``train/dense_return
 trajectories promoted, each as a z-score within its run, so that envs pool; and, where
 the run logged it, the share of the evaluation's episodes below the teacher (a fall of one episode
 in ten, or a collapse). How many falls were over by the next evaluation tells a dip of one
-evaluation from a collapse that lasts.
+evaluation from a collapse that lasts; how many of the target actor's falls came at a fall of the
+online actor tells whether the target actor, an average of the actor's recent weights, falls with it.
 """
 
 from __future__ import annotations
@@ -203,7 +204,7 @@ def report(folders: list[Path], window: int, given_teacher: float | None = None)
         "",
         *(
             [
-                f"Both actors below the teacher at the same evaluation: "
+                f"Both actors fell at the same evaluation: "
                 f"{sum(row['fell'] is True for row in target_fell)} of the target actor's {len(target_fell)} "
                 "falls came with a fall of the online actor.",
                 "",

@@ -11,11 +11,12 @@ runs' ``eval/return_online``: training does not depend on the evaluated actor) a
 an evaluation passed the teacher, the last-5 mean and the fall share
 (:func:`torchrl_sail.harness.fall_share`), and the best policy's evaluation, reported beside last-5
 in a table with a row per env, teacher and setting.
-The verdict is ``pending`` until every run the rule needs is finished; meanwhile an interim block
-compares each setting with the defaults on the cells both have, and names the criteria of the first
-set that the finished runs already miss whatever the runs to come. The decision then follows the
-rule's order: the candidate by the first set, then by the second; then the penalty alone; else the
-defaults stay.
+After the table, where each setting's runs kept their best policy (late in the run, below their
+last-5, below their teacher). The verdict is ``pending`` until every run the rule needs is finished;
+meanwhile an interim block compares each setting with the defaults on the cells both have, and
+names the criteria of the first set that the finished runs already miss whatever the runs to come.
+The decision then follows the rule's order: the candidate by the first set, then by the second;
+then the penalty alone; else the defaults stay.
 
 A run the rule reads is refused, naming its folder, when it was not run with its setting
 (:data:`SETTINGS`; a key an older run's config lacks is at the default of its time), when two runs
@@ -179,6 +180,15 @@ def pooled_falls(results: dict, keys: list[tuple[str, str, int]] | None = None) 
     return sum(f for f, _ in counts), sum(n for _, n in counts)
 
 
+def runs(n: int) -> str:
+    return f"{n} run" if n == 1 else f"{n} runs"
+
+
+def listed(items: list[str]) -> str:
+    """``a``, ``a and b``, ``a, b and c``."""
+    return items[0] if len(items) == 1 else f"{', '.join(items[:-1])} and {items[-1]}"
+
+
 def percent(falls: int, counted: int) -> str:
     return f"{100 * falls / counted:.1f}% ({falls}/{counted})" if counted else "n/a (0 counted)"
 
@@ -211,21 +221,21 @@ def out_of_reach(ours: dict, setting: str) -> list[str]:
     lines = []
     failed = [f"{env} {teacher} seed {seed}" for (env, teacher, seed), run in sorted(ours.items()) if not run.passed]
     if failed:
-        lines.append(f"- every run passes its teacher: missed, as {', '.join(failed)} never passed.")
+        shown = failed[:6] + ([f"{len(failed) - 6} more"] if len(failed) > 6 else [])
+        lines.append(f"- every run passes its teacher: missed, as {listed(shown)} never passed.")
     falls, counted = pooled_falls(ours, list(ours))
     to_come = sum(key not in ours for key in needed(setting) if key[0] in FALL_ENVS)
     best = counted + to_come * MAX_COUNTED
     if best and falls / best > MAX_FALL_SHARE:
-        lines.append(
-            f"- fall share on Hopper and Walker2d at most 5%: missed, as it is at least {percent(falls, best)}: "
-            f"{falls} falls in {counted} evaluations so far, and "
-            + (
-                f"1 run to come that counts at most {MAX_COUNTED}"
-                if to_come == 1
-                else f"{to_come} runs to come that count at most {MAX_COUNTED} each"
+        if to_come:
+            each = (
+                f"that {'counts' if to_come == 1 else 'count'} at most {MAX_COUNTED}{'' if to_come == 1 else ' each'}"
             )
-            + ", all without a fall."
-        )
+            how = f"at least {percent(falls, best)}: {falls} falls in {counted} evaluations so far, and "
+            how += f"{runs(to_come)} to come {each}, all without a fall"
+        else:
+            how = f"{percent(falls, best)} over its finished runs, all of them in"
+        lines.append(f"- fall share on Hopper and Walker2d at most 5%: missed, as it is {how}.")
     if not lines:
         return []
     return ["", f"Already out of reach for the {setting}, whatever its runs to come (the first set):", "", *lines]
@@ -355,7 +365,7 @@ def table(found: dict) -> list[str]:
                     f"| {env} | {shown} | {name} | {len(setting_runs)} | {sum(run.passed for run in setting_runs)} "
                     f"| {spread([run.last5 for run in setting_runs])} | {spread(best)}{some} | {share} |"
                 )
-    return [*lines, "", *kept_policies(found)]
+    return [*lines, ""]
 
 
 def kept_policies(found: dict) -> list[str]:
@@ -370,15 +380,15 @@ def kept_policies(found: dict) -> list[str]:
         below_last5 = sum(run.best_policy < run.last5 for run in kept)
         below_teacher = sum(run.best_policy < run.teacher_return for run in kept)
         lines.append(
-            f"- {name}: of its {len(kept)} runs with a best policy, {late} kept it in the last {LATE // 1000}k "
+            f"- {name}: of its {runs(len(kept))} with a best policy, {late} kept it in the last {LATE // 1000}k "
             f"frames; it is below the run's last-5 in {below_last5} and below the teacher in {below_teacher}."
         )
     if not lines:
         return []
     return [
-        "Where the best policy was kept. The authors' rule keeps the policy at the highest mean of the last "
-        "100 training episodes (up to 100k frames: an episode lasts at most 1000), so where that mean is "
-        "still climbing at the end of a run, the policy kept is close to the last one, fallen or not.",
+        "Where the best policy was kept. The authors' rule keeps the policy at the highest mean return of the "
+        "last `eval.best_policy.window` training episodes, a span of many thousand frames, so where that mean "
+        "is still climbing at the end of a run, the policy kept is close to the last one, fallen or not.",
         "",
         *lines,
         "",
@@ -396,7 +406,13 @@ def report(roots: list[Path]) -> str:
         "",
     ]
     candidate, penalty = judge(found, "candidate"), judge(found, "penalty")
-    lines += [*table(found), *candidate, *penalty, decision(verdict(candidate), verdict(penalty))]
+    lines += [
+        *table(found),
+        *kept_policies(found),
+        *candidate,
+        *penalty,
+        decision(verdict(candidate), verdict(penalty)),
+    ]
     return "\n".join(lines)
 
 

@@ -53,7 +53,10 @@ def test_falls_of_both_actors_and_the_logs_before_them(tmp_path):
     assert [(row["back"], row["target_back"]) for row in after] == [(True, False), (False, False), (False, False)]
     assert "by the next evaluation (a dip of one evaluation, not a collapse): 1 of the online " in text
     assert "actor's 2 falls, 0 of the target actor's 1 (a run's last" in text
-    assert "same evaluation: 1 of the target actor's 1 falls came with a fall of the online actor" in text  # 50k
+    assert (
+        "Both actors fell at the same evaluation: 1 of the target actor's 1 falls came with a fall of the online actor"
+        in text
+    )  # 50k
 
 
 def test_the_share_of_episodes_below_the_teacher_at_each_actors_falls(tmp_path):
@@ -160,7 +163,15 @@ def test_a_target_fall_before_the_online_actors_first_pass_counts_everywhere(tmp
     assert (line["online_only"], line["target_only"]) == (0, 1)
     text = falls.report([tmp_path / "run"], window=10_000)
     assert "1 of the target actor's 1 (a run's last" in text
-    assert "same evaluation: 0 of the target actor's 1 falls" in text  # the online actor had not passed yet
+    assert "same evaluation: 0 of the target actor's 1 falls" in text  # the online actor held (150) at 20k
+
+
+def test_a_target_fall_beside_an_online_actor_below_the_teacher_before_its_pass_is_not_a_shared_fall(tmp_path):
+    """At 20k the target falls (after its pass at 10k) while the online actor is at 60, below the teacher
+    but before its own first pass (30k): not a fall of the online actor, so the target's fall is not shared."""
+    curves_run(tmp_path / "run", {10_000: 50, 20_000: 60, 30_000: 150}, {10_000: 150, 20_000: 40, 30_000: 150})
+    text = falls.report([tmp_path / "run"], window=10_000)
+    assert "Both actors fell at the same evaluation: 0 of the target actor's 1 falls" in text
 
 
 def test_fell_alone_needs_the_other_actor_at_or_above_the_teacher(tmp_path):

@@ -286,17 +286,18 @@ def test_best_policy_is_reported_beside_last5(tmp_path):
 def test_where_the_best_policy_was_kept(tmp_path):
     (tmp_path / "trusted").mkdir(parents=True)
     (tmp_path / "trusted" / "matrix.json").write_text("{}")
-    # last-5 200, teacher 100: kept at the end above both; late and below last-5; early and below both;
-    # at 290k exactly, not in the last 10k frames
-    for seed, best, frames in ((0, 250.0, 300_000), (1, 150.0, 295_000), (2, 90.0, 280_000), (3, 210.0, 290_000)):
+    # last-5 200, teacher 100: kept at the end above both; late and below last-5 (twice); early and below
+    # both; at 290k exactly, not in the last 10k frames
+    kept = ((0, 250.0, 300_000), (1, 150.0, 295_000), (2, 90.0, 280_000), (3, 210.0, 290_000), (4, 180.0, 299_000))
+    for seed, best, frames in kept:
         write_run(
             tmp_path, "paper-trusted", "Hopper-v4", "sail", seed, CANDIDATE_RETURNS, best_policy=best, kept_at=frames
         )
     write_run(tmp_path, "paper", "Hopper-v4", "sail", 0, DEFAULT_RETURNS, best_policy=50.0)  # frame not recorded
     text = rule.report([tmp_path])
     assert (
-        "- candidate: of its 4 runs with a best policy, 2 kept it in the last 10k frames; it is below the run's "
-        "last-5 in 2 and below the teacher in 1." in text
+        "- candidate: of its 5 runs with a best policy, 3 kept it in the last 10k frames; it is below the run's "
+        "last-5 in 3 and below the teacher in 1." in text
     )
     assert "- defaults:" not in text.split("Where the best policy was kept")[1].split("###")[0]
 
@@ -348,3 +349,16 @@ def test_rule_refuses_a_run_it_cannot_count(tmp_path, runs, message):
         write_run(tmp_path, label, "Hopper-v4", method, 0, returns, config=config, **options)
     with pytest.raises(ValueError, match=message):
         rule.report([tmp_path])
+
+
+def test_a_fall_share_with_no_run_to_come_is_its_own(tmp_path):
+    """Every Hopper and Walker2d candidate run is in, falling once in its 4 counted evaluations; a Swimmer
+    run is missing, so the verdict waits, but the fall share is final: 20 / 80."""
+    falling = {key: ONLINE_RETURNS for key in every("Hopper-v4") + every("Walker2d-v4")}
+    full_set(tmp_path, skip={("Swimmer-v4", "paper", 0)}, candidate=falling)
+    candidate = rule.report([tmp_path]).split("### penalty")[0]
+    assert "**Verdict: pending.**" in candidate
+    assert (
+        "- fall share on Hopper and Walker2d at most 5%: missed, as it is 25.0% (20/80) over its finished runs, "
+        "all of them in." in candidate
+    )
