@@ -35,7 +35,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from aggregate import HEADLINE_EVALS, find_run_folders, load_run  # noqa: E402
+from aggregate import HEADLINE_EVALS, find_run_folders, listed, load_run  # noqa: E402
 
 from torchrl_sail.harness import fall_share, read_scalar, write_atomic  # noqa: E402
 
@@ -182,11 +182,6 @@ def pooled_falls(results: dict, keys: list[tuple[str, str, int]] | None = None) 
 
 def runs(n: int) -> str:
     return f"{n} run" if n == 1 else f"{n} runs"
-
-
-def listed(items: list[str]) -> str:
-    """``a``, ``a and b``, ``a, b and c``."""
-    return items[0] if len(items) == 1 else f"{', '.join(items[:-1])} and {items[-1]}"
 
 
 def percent(falls: int, counted: int) -> str:
