@@ -88,7 +88,7 @@ def main(cfg):  # noqa: F821
             log_metrics(loggers, {"bc/loss": out["loss_bc"]}, step + 1)  # x axis: BC steps
     if run["gradient_steps"] < steps:
         run["gradient_steps"], run["train_seconds"] = steps, time.time() - start
-        returns = actor_returns(env, actor, None, "online", cfg.eval.episodes, cfg.env.max_episode_steps)
+        returns = actor_returns(env, actor, None, cfg.eval.episodes, cfg.env.max_episode_steps)
         metrics = evaluation_metrics(returns, teacher_return)
         add_evaluation(run, 0, metrics["eval/return"], teacher_return)
         log_metrics(loggers, metrics, 0)

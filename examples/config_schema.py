@@ -46,9 +46,9 @@ Eviction = Choice("Eviction", {name: name for name in ("topk", "union", "fifo")}
 ColumnCheck = Choice("ColumnCheck", {name: name for name in ("warn", "error", "off")})
 Implementation = Choice("Implementation", {name: name for name in ("fused", "loss")})
 Precision = Choice("Precision", {name: name for name in ("fp32", "bf16")})
-# a TD3 learner's actor (online: the one the TD3 step trains) or its target actor (the Polyak
-# average of its recent weights)
-EvaluatedActor = Choice("EvaluatedActor", {name: name for name in ("online", "target")})
+# an actor of a run: online (the one the TD3 or SAC step trains), target (a TD3 learner's target
+# actor, the Polyak average of its recent weights) or average (eval.average_frames' longer average)
+EvaluatedActor = Choice("EvaluatedActor", {name: name for name in ("online", "target", "average")})
 # a run's last checkpoint or the best policy it kept (eval.best_policy)
 EvaluatedPolicy = Choice("EvaluatedPolicy", {name: name for name in ("last", "best")})
 LossFunction = Choice("LossFunction", {name: name for name in ("l1", "l2", "smooth_l1")})
@@ -377,11 +377,14 @@ class BestPolicyConfig:
 class EvalConfig:
     every_frames: int = 10_000  # deterministic evaluation cadence (the authors' code has none by default)
     episodes: int = 5
-    # the TD3 actor a run evaluates, keeps as its best policy and ships: online | target
+    # the actor a run evaluates, keeps as its best policy and ships: online | target | average
     actor: EvaluatedActor = EvaluatedActor.online
-    # also the other actor (eval/return_online or eval/return_target), on an env seeded as the
-    # evaluation's, so both meet the same start states
+    # also every other actor the run has (eval/return_online, eval/return_target,
+    # eval/return_average), each on an env seeded as the evaluation's: all meet the same start states
     other_actor: bool = False
+    # 0: none | N: an exponential average of the actor's weights with a memory of N frames, the
+    # actor eval.actor=average names (TD3's target actor remembers about policy_delay / tau steps)
+    average_frames: int = 0
     best_policy: BestPolicyConfig = field(default_factory=BestPolicyConfig)
     video_every_frames: int = 0  # 0: off | N: every N frames, one deterministic episode to videos/ (and wandb)
     video_format: VideoFormat = VideoFormat.mp4  # mp4 (needs the `video` extra: imageio-ffmpeg) | gif
@@ -428,7 +431,8 @@ class EvaluateConfig:
     episodes: int = 10  # deterministic episodes, each from a fresh reset of one seeded env
     # last: the run's last checkpoint | best: the policy it kept as its best (best_policy.pt)
     policy: EvaluatedPolicy = EvaluatedPolicy.last
-    # online: the trained actor; target: its Polyak average (TD3 learners); null: the run's eval.actor
+    # online: the trained actor; target: its Polyak average (TD3 learners); average: the run's
+    # eval.average_frames average; null: the run's eval.actor
     actor: EvaluatedActor | None = None
     seed: int | None = None  # null: the run's seed + 20000 (neither its training nor its eval stream)
     video: bool = False  # true: also record the first episode (replayed on a rendering env)
@@ -946,17 +950,31 @@ def _check_eval(cfg: DictConfig) -> None:
             _at_least("eval.best_policy.window", e.best_policy.window, 1),
             _at_least("eval.best_policy.episodes", e.best_policy.episodes, 0),
             _at_least("eval.every_frames", e.every_frames, 0),
+            _at_least("eval.average_frames", e.average_frames, 0),
             (
                 "eval.actor",
                 str(e.actor),
-                e.actor == EvaluatedActor.online or cfg.algo.learner == "td3",
+                e.actor != EvaluatedActor.target or cfg.algo.learner == "td3",
                 "target is TD3's (algo.learner=td3): only a TD3 learner keeps a target actor",
+            ),
+            (
+                "eval.actor",
+                str(e.actor),
+                e.actor != EvaluatedActor.average or e.average_frames > 0,
+                "average needs eval.average_frames > 0, the averaged actor's memory in frames",
+            ),
+            (
+                "eval.average_frames",
+                e.average_frames,
+                not e.average_frames or cfg.algo.learner in ("td3", "sac"),
+                "is the off-policy learners' (algo.learner=td3 or sac, examples/sail_td3.py)",
             ),
             (
                 "eval.other_actor",
                 e.other_actor,
-                not e.other_actor or cfg.algo.learner == "td3",
-                "is TD3's (algo.learner=td3): only a TD3 learner keeps a target actor",
+                not e.other_actor or cfg.algo.learner == "td3" or e.average_frames > 0,
+                "needs a second actor: a TD3 learner's target actor (algo.learner=td3) or an "
+                "averaged one (eval.average_frames > 0)",
             ),
         ]
     )

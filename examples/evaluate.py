@@ -11,8 +11,9 @@ reports), the delayed reward r_e (what the learner saw) and the episode length a
 written with their mean, std, min and max to ``<run_dir>/evaluation.json``. ``policy=best``
 evaluates the policy the run kept as its best by its own training returns (``best_policy.pt``,
 the SAIL authors' rule) instead of its last checkpoint. The actor is the one the run's own
-evaluations use (its ``eval.actor``) unless ``actor=online`` or ``actor=target`` (a TD3 learner's
-target actor, the Polyak average of its recent weights) says otherwise. ``video=true`` replays the
+evaluations use (its ``eval.actor``) unless ``actor=online``, ``actor=target`` (a TD3 learner's
+target actor, the Polyak average of its recent weights) or ``actor=average`` (the longer average a
+run with ``eval.average_frames`` keeps) says otherwise. ``video=true`` replays the
 first episode on a rendering env (same seed: the same episode) into ``evaluation.mp4`` (or
 ``.gif``) beside it.
 ``export=<dataset id>`` writes the evaluated episodes, with their dense rewards, as a local Minari
@@ -35,7 +36,7 @@ import hydra
 import torch
 from config_schema import SAILConfig, register_config_schema
 from omegaconf import OmegaConf
-from run_utils import evaluate_episodes, load_best_policy, seed_everything
+from run_utils import evaluate_episodes, load_best_policy, make_actor_average, seed_everything
 from torchrl.checkpoint import Checkpoint
 from utils import copy_observation_norm, make_agent, make_discriminator, make_env, make_losses, make_ppo_models
 from video import make_render_env, record_episode, video_fps, write_video
@@ -69,12 +70,13 @@ def load_run(run_dir: Path):
     return OmegaConf.merge(defaults, OmegaConf.load(config)), run
 
 
-def load_actor(cfg, env, checkpoint: Path, target: bool = False, best_policy: Path | None = None):
+def load_actor(cfg, env, checkpoint: Path, which: str = "online", best_policy: Path | None = None):
     """The run's deterministic actor with the checkpoint's weights (TD3/SAC keep them in the loss).
 
     A PPO actor reads normalised observations: ``env``'s normaliser gets the training statistics the
-    checkpoint holds, frozen. ``target``: a TD3 learner's target actor, the Polyak average of its
-    recent weights, instead of the actor itself. ``best_policy``: a TD3/SAC run's
+    checkpoint holds, frozen. ``which``: the actor by ``eval.actor``'s name, ``online`` (the actor
+    itself), ``target`` (a TD3 learner's target actor, the Polyak average of its recent weights) or
+    ``average`` (the run's ``eval.average_frames`` average). ``best_policy``: a TD3/SAC run's
     ``best_policy.pt``, whose weights replace the checkpoint's.
     """
     if cfg.algo.learner == "ppo":
@@ -92,9 +94,13 @@ def load_actor(cfg, env, checkpoint: Path, target: bool = False, best_policy: Pa
         loss = make_losses(cfg, actor, critic, make_discriminator(cfg, env), env.action_spec)[0]
         Checkpoint(loss=loss).load(checkpoint, components=["loss"])  # the actor's parameters live in the loss
         if best_policy is not None:
-            load_best_policy(best_policy, loss, "target" if target else "online")
-        elif target:
+            load_best_policy(best_policy, loss, which)
+        elif which == "target":
             loss.actor_network_params.data.copy_(loss.target_actor_network_params.data)
+        elif which == "average":
+            average = make_actor_average(cfg, loss)
+            Checkpoint(actor_average=average).load(checkpoint, components=["actor_average"])
+            loss.actor_network_params.data.copy_(average.weights)
     return actor.eval()
 
 
@@ -136,6 +142,11 @@ def check_args(args, cfg) -> None:
         raise ValueError(
             f"actor=target: run_dir={args.run_dir} is algo={cfg.algo.name}, a {cfg.algo.learner} learner without "
             f"a target actor; only TD3 learners (sail, dac, td3_delayed, ...) keep one"
+        )
+    if args.actor == "average" and not cfg.eval.average_frames:
+        raise ValueError(
+            f"actor=average: run_dir={args.run_dir} kept no averaged actor (its eval.average_frames is 0; "
+            f"a run keeps one with eval.average_frames=N)"
         )
     if args.episodes < 1:
         raise ValueError(f"episodes={args.episodes}: must be >= 1")
@@ -180,7 +191,7 @@ def main(args):  # noqa: F821
     seed_everything(seed)
     env = make_env(cfg, seed)
     best_policy = run_dir / BEST_POLICY if args.policy == "best" else None
-    actor = load_actor(cfg, env, checkpoint_dir(run_dir), target=args.actor == "target", best_policy=best_policy)
+    actor = load_actor(cfg, env, checkpoint_dir(run_dir), str(args.actor), best_policy=best_policy)
     episodes = evaluate_episodes(env, actor, args.episodes, cfg.env.max_episode_steps, keep_rollouts=bool(args.export))
 
     result = {

@@ -19,7 +19,7 @@ import contextlib
 
 import torch
 from omegaconf import DictConfig
-from run_utils import actor_returns, crossings, evaluation_metrics, record_evaluation
+from run_utils import actor_names, actor_returns, crossings, evaluation_metrics, record_evaluation
 from torchrl import timeit
 from utils import (
     ActorDrift,
@@ -405,48 +405,51 @@ def make_learning_blocks(cfg: DictConfig, td3_block: TD3Block, batches, d_loss, 
 class Evaluations:
     """Every ``eval.every_frames`` frames: deterministic episodes of the actor ``eval.actor`` names,
     kept in ``run["evals"]`` (``eval/return``, with ``eval/min_return`` and ``eval/below_teacher``:
-    :func:`run_utils.evaluation_metrics`), and with ``eval.other_actor`` of the other actor
-    (``eval/return_<online|target>`` and so on: same seeds, an env of its own); every
+    :func:`run_utils.evaluation_metrics`), and with ``eval.other_actor`` of every other actor the
+    run has (``eval/return_<online|target|average>`` and so on: same seeds, an env each); every
     ``eval.video_every_frames`` frames a video of one episode.
 
     Args:
-        envs: ``{"evaluated": env, "other": env or None}``, and ``"video"``: a render env with ``video``.
+        actors: the live weights of each actor by name (:func:`run_utils.actor_weights`; ``None``:
+            ``actor`` alone, an on-policy learner's).
+        envs: ``{"evaluated": env, "others": {actor name: env}}`` (:func:`make_eval_envs`), and
+            ``"video"``: a render env with ``video``.
         video: ``video(env, actor, frames)`` records and logs one episode (``None``: no videos).
     """
 
-    def __init__(self, cfg: DictConfig, actor, loss, run: dict, teacher_return: float, envs: dict, video) -> None:
-        self.cfg, self.actor, self.loss, self.run, self.teacher_return = cfg, actor, loss, run, teacher_return
+    def __init__(self, cfg: DictConfig, actor, actors, run: dict, teacher_return: float, envs: dict, video) -> None:
+        self.cfg, self.actor, self.actors, self.run, self.teacher_return = cfg, actor, actors, run, teacher_return
         self.envs, self.video = envs, video
-        self.other = "online" if cfg.eval.actor == "target" else "target"
 
     def __call__(self, before: int, frames: int) -> dict:
         cfg, metrics = self.cfg, {}
         if crossings(cfg.eval.every_frames, 0, before, frames):
             metrics.update(
                 record_evaluation(
-                    self.envs["evaluated"], self.actor, self.loss, cfg, self.run, frames, self.teacher_return
+                    self.envs["evaluated"], self.actor, self.actors, cfg, self.run, frames, self.teacher_return
                 )
             )
-            if self.envs["other"] is not None:
-                returns = actor_returns(
-                    self.envs["other"], self.actor, self.loss, self.other, cfg.eval.episodes, cfg.env.max_episode_steps
-                )
-                metrics.update(evaluation_metrics(returns, self.teacher_return, f"_{self.other}"))
+            for name, env in self.envs["others"].items():
+                weights = None if name == "online" else self.actors[name]
+                returns = actor_returns(env, self.actor, weights, cfg.eval.episodes, cfg.env.max_episode_steps)
+                metrics.update(evaluation_metrics(returns, self.teacher_return, f"_{name}"))
         if crossings(cfg.eval.video_every_frames, 0, before, frames):
             self.video(self.envs["video"], self.actor, frames)
         return metrics
 
 
 def make_eval_envs(cfg: DictConfig, make_env) -> dict:
-    """The evaluations' envs, ``{"evaluated": env, "other": env or None}``: the other actor's episodes
-    (``eval.other_actor``) start where the evaluated one's do (same seed, an env of its own)."""
+    """The evaluations' envs, ``{"evaluated": env, "others": {actor name: env}}``: with
+    ``eval.other_actor``, each other actor's episodes start where the evaluated one's do (same
+    seed, an env of its own)."""
+    others = [name for name in actor_names(cfg) if name != cfg.eval.actor] if cfg.eval.other_actor else []
     return {
         "evaluated": make_env(cfg, cfg.seed + 10_000),
-        "other": make_env(cfg, cfg.seed + 10_000) if cfg.eval.other_actor else None,
+        "others": {name: make_env(cfg, cfg.seed + 10_000) for name in others},
     }
 
 
-def make_evaluations(cfg: DictConfig, envs: dict, actor, loss, run: dict, teacher_return: float, loggers, run_dir):
+def make_evaluations(cfg: DictConfig, envs: dict, actor, actors, run: dict, teacher_return: float, loggers, run_dir):
     """The evaluations of ``cfg`` on ``envs`` (:func:`make_eval_envs`). With ``eval.video_every_frames``
     the render env is built here, before training: a missing GL backend fails now."""
     video = None
@@ -456,4 +459,4 @@ def make_evaluations(cfg: DictConfig, envs: dict, actor, loss, run: dict, teache
         def video(env, actor, frames):
             log_video(loggers, env, actor, cfg, run_dir, frames)
 
-    return Evaluations(cfg, actor, loss, run, teacher_return, envs, video)
+    return Evaluations(cfg, actor, actors, run, teacher_return, envs, video)

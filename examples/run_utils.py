@@ -133,15 +133,49 @@ def evaluate(env, actor, episodes: int, max_steps: int) -> float:
     return sum(e["dense_return"] for e in evaluate_episodes(env, actor, episodes, max_steps)) / episodes
 
 
-def actor_returns(env, actor, loss, which: str, episodes: int, max_steps: int) -> list[float]:
-    """Dense returns of deterministic episodes of the actor ``which`` names: ``"online"`` (``actor``
-    itself) or ``"target"`` (the loss's target actor, whose weights stand in ``actor``'s for the
-    episodes, then ``actor``'s own come back)."""
-    weights = contextlib.nullcontext()
-    if str(which) == "target":
-        # preserve_module_state=False: the loss's target tensors stay the buffers it saves and updates
-        weights = loss.target_actor_network_params.to_module(actor, preserve_module_state=False)
-    with weights:
+# the file keys of each actor's weights in best_policy.pt (and BestPolicy's state)
+ACTOR_KEYS = {"online": "actor", "target": "target_actor", "average": "average_actor"}
+
+
+def actor_names(cfg: DictConfig) -> list[str]:
+    """The actors a run of ``cfg`` has, by the name ``eval.actor`` gives them: ``online``; ``target``
+    for a TD3 learner; ``average`` with ``eval.average_frames`` (:class:`ActorAverage`)."""
+    return [
+        "online",
+        *(["target"] if cfg.algo.learner == "td3" else []),
+        *(["average"] if cfg.eval.average_frames else []),
+    ]
+
+
+def make_actor_average(cfg: DictConfig, loss) -> ActorAverage | None:
+    """``eval.average_frames``' :class:`ActorAverage` of ``loss``'s actor, from the frame learning
+    starts (``optim.start_frames``, else the end of the random warm-up); ``None`` when it is 0."""
+    if not cfg.eval.average_frames:
+        return None
+    start = cfg.optim.start_frames if cfg.optim.start_frames is not None else cfg.collector.init_random_frames
+    return ActorAverage(loss.actor_network_params, memory_frames=cfg.eval.average_frames, start=start)
+
+
+def actor_weights(loss, average: ActorAverage | None = None) -> dict:
+    """The weights of every actor a run has, by the name ``eval.actor`` gives it: ``"online"`` (the
+    actor the loss trains), ``"target"`` (a TD3 loss's target actor) and ``"average"`` (``average``'s,
+    :class:`ActorAverage`). Live tensors: they change as the run trains."""
+    weights = {"online": loss.actor_network_params}
+    if hasattr(loss, "target_actor_network_params"):
+        weights["target"] = loss.target_actor_network_params
+    if average is not None:
+        weights["average"] = average.weights
+    return weights
+
+
+def actor_returns(env, actor, weights, episodes: int, max_steps: int) -> list[float]:
+    """Dense returns of deterministic episodes of ``actor``, run with ``weights`` in place of its own
+    (one entry of :func:`actor_weights`; ``None``: its own). Its own come back after the episodes."""
+    swap = contextlib.nullcontext()
+    if weights is not None:
+        # preserve_module_state=False: the swapped-in tensors stay the ones the run saves and updates
+        swap = weights.to_module(actor, preserve_module_state=False)
+    with swap:
         return [e["dense_return"] for e in evaluate_episodes(env, actor, episodes, max_steps)]
 
 
@@ -162,14 +196,66 @@ def evaluation_metrics(returns: list[float], teacher_return: float, suffix: str 
     }
 
 
-def record_evaluation(eval_env, actor, loss, cfg: DictConfig, run: dict, frames: int, teacher_return: float) -> dict:
-    """The loops' evaluation at ``frames`` of the actor ``eval.actor`` names: its
-    :func:`evaluation_metrics`, the mean return kept in ``run["evals"]`` with the first frame it beat
-    the teacher (``run["passed_teacher_at"]``)."""
-    returns = actor_returns(eval_env, actor, loss, cfg.eval.actor, cfg.eval.episodes, cfg.env.max_episode_steps)
+def record_evaluation(eval_env, actor, actors, cfg: DictConfig, run: dict, frames: int, teacher_return: float) -> dict:
+    """The loops' evaluation at ``frames`` of the actor ``eval.actor`` names (its weights in
+    ``actors``, :func:`actor_weights`; ``None``: ``actor`` alone): its :func:`evaluation_metrics`, the
+    mean return kept in ``run["evals"]`` with the first frame it beat the teacher
+    (``run["passed_teacher_at"]``)."""
+    weights = None if actors is None or cfg.eval.actor == "online" else actors[str(cfg.eval.actor)]
+    returns = actor_returns(eval_env, actor, weights, cfg.eval.episodes, cfg.env.max_episode_steps)
     metrics = evaluation_metrics(returns, teacher_return)
     add_evaluation(run, frames, metrics["eval/return"], teacher_return)
     return metrics
+
+
+class ActorAverage:
+    """An exponential moving average of the actor's weights over frames: an actor to evaluate, keep
+    and ship (``eval.actor=average``) whose memory is set in frames, where TD3's target actor
+    remembers about ``policy_delay / tau`` gradient steps.
+
+    After each collector batch, :meth:`update` moves the average toward the actor's weights by
+    ``1 - exp(-n / memory_frames)`` for the batch's ``n`` frames, so the actor's weights of ``k``
+    frames ago weigh in proportion to ``exp(-k / memory_frames)``. While fewer than about
+    ``memory_frames`` frames have passed since ``start`` (the frame learning starts), the step is
+    ``n / (frames - start)`` instead, the uniform average of the weights since ``start``: the
+    initial weights do not linger. A checkpoint component (``state_dict``).
+
+    Args:
+        weights: the actor's live weights (``loss.actor_network_params``).
+        memory_frames (int): the average's memory, in frames (``eval.average_frames``).
+        start (int): the first frame averaged.
+
+    Examples:
+        >>> import torch
+        >>> from tensordict import TensorDict
+        >>> live = TensorDict({"w": torch.tensor([0.0])})
+        >>> average = ActorAverage(live, memory_frames=1000, start=0)
+        >>> live["w"] += 4.0
+        >>> average.update(before=0, frames=100)  # the first step copies: the uniform average of one
+        >>> live["w"] += 4.0
+        >>> average.update(before=100, frames=200)  # the uniform average of (4, 8), as 1/2 > 1 - exp(-0.1)
+        >>> average.weights["w"].tolist()
+        [6.0]
+    """
+
+    def __init__(self, weights, *, memory_frames: int, start: int) -> None:
+        self.live = weights
+        self.weights = weights.data.clone()
+        self.memory_frames, self.start = memory_frames, start
+
+    def update(self, *, before: int, frames: int) -> None:
+        """Moves the average toward the actor's weights for the frames in ``(before, frames]`` past ``start``."""
+        if frames <= self.start:
+            return
+        n = frames - max(before, self.start)
+        step = max(-math.expm1(-n / self.memory_frames), n / (frames - self.start))
+        self.weights.lerp_(self.live.data, step)
+
+    def state_dict(self) -> dict:
+        return {"weights": self.weights.flatten_keys(".").to_dict()}
+
+    def load_state_dict(self, state: dict) -> None:
+        self.weights.update_(TensorDict(state["weights"]).unflatten_keys("."))
 
 
 class BestPolicy:
@@ -177,36 +263,33 @@ class BestPolicy:
     authors' rule (their ``train_sail.py`` callback saves ``best_model.pkl``).
 
     Every ``every_frames`` frames, the mean return of the last ``window`` finished training
-    episodes is compared with the best so far; a strictly higher mean keeps a copy of the actor's
-    weights (and, for a TD3 loss, of its target actor's). The copy lives in memory and is written
+    episodes is compared with the best so far; a strictly higher mean keeps a copy of the weights
+    of every actor the run has (the actor's, a TD3 loss's target actor's, an averaged actor's). The
+    copy lives in memory and is written
     to ``best_policy.pt`` by :meth:`write`, at the run's checkpoints, so the file always matches
     the checkpoint a resume continues from. A checkpoint component (``state_dict``).
 
     Args:
-        loss: the TD3 or SAC loss that holds the actor's weights (``actor_network_params``).
+        actors: the live weights of each actor by name (:func:`actor_weights`).
         every_frames (int): how often the window's mean is compared (the authors': 500).
         window (int): how many of the latest training episodes are averaged (the authors': 100).
 
     Examples:
         >>> import torch
         >>> from tensordict import TensorDict
-        >>> class Loss:  # stands in for TD3Loss: what BestPolicy reads of it
-        ...     actor_network_params = TensorDict({"w": torch.zeros(2)})
-        >>> loss = Loss()
-        >>> best = BestPolicy(loss, every_frames=500, window=2)
+        >>> actor = TensorDict({"w": torch.zeros(2)})  # stands in for loss.actor_network_params
+        >>> best = BestPolicy({"online": actor}, every_frames=500, window=2)
         >>> best.observe(torch.tensor([10.0, 20.0]), before=0, frames=500)  # mean 15: kept
         True
-        >>> loss.actor_network_params["w"] += 1.0
+        >>> actor["w"] += 1.0
         >>> best.observe(torch.tensor([5.0]), before=500, frames=1000)  # mean of (20, 5) 12.5: not kept
         False
         >>> best.frames, best.mean, best.kept["actor"]["w"].tolist()
         (500, 15.0, [0.0, 0.0])
     """
 
-    def __init__(self, loss, *, every_frames: int, window: int) -> None:
-        self.live = {"actor": loss.actor_network_params}
-        if hasattr(loss, "target_actor_network_params"):
-            self.live["target_actor"] = loss.target_actor_network_params
+    def __init__(self, actors: dict, *, every_frames: int, window: int) -> None:
+        self.live = {ACTOR_KEYS[name]: weights for name, weights in actors.items()}
         self.kept = {name: params.data.clone() for name, params in self.live.items()}
         self.every_frames, self.window = every_frames, window
         self.returns: list[float] = []
@@ -229,9 +312,9 @@ class BestPolicy:
         return True
 
     def params(self, which: str):
-        """The kept weights of the actor ``which`` names (``"online"`` or ``"target"``), keyed as the
-        loss keeps them: ``with best.params(which).to_module(actor): ...`` runs the kept policy."""
-        return self.kept["target_actor" if str(which) == "target" else "actor"]
+        """The kept weights of the actor ``which`` names (``"online"``, ``"target"``, ``"average"``),
+        keyed as the loss keeps them: ``with best.params(which).to_module(actor): ...`` runs the kept policy."""
+        return self.kept[ACTOR_KEYS[str(which)]]
 
     def record(self) -> dict:
         return {"frames": self.frames, "train_return_mean": self.mean, "window": self.window}
@@ -281,7 +364,7 @@ def load_best_policy(path: Path, loss, which: str) -> dict:
             f"written at its checkpoints; runs of torchrl_sail versions before it have none)"
         )
     state = torch.load(path, weights_only=True)
-    name = "target_actor" if str(which) == "target" else "actor"
+    name = ACTOR_KEYS[str(which)]
     if name not in state:
         raise ValueError(f"{path}: holds no {which} actor (only {sorted(k for k in state if 'actor' in k)})")
     loss.actor_network_params.data.update_(TensorDict(state[name]).unflatten_keys("."))

@@ -47,9 +47,11 @@ from run_utils import (
     BestPolicy,
     RunCheckpoint,
     RunClock,
+    actor_weights,
     crossings,
     evaluate_best_policy,
     log_metrics,
+    make_actor_average,
     make_loggers,
     make_run,
     start_run,
@@ -99,8 +101,11 @@ def main(cfg):  # noqa: F821
     discriminator = make_discriminator(cfg, env)
     loss, target_updater, alpha_scheduler, d_loss = make_losses(cfg, actor, critic, discriminator, env.action_spec)
     optimizers = make_optimizers(cfg, loss, discriminator, rnd)
-    # the authors' best policy: the actor at the best mean of the last training returns
-    best_policy = BestPolicy(loss, every_frames=cfg.eval.best_policy.every_frames, window=cfg.eval.best_policy.window)
+    # eval.average_frames: an average of the actor's weights over that many frames, to evaluate and ship
+    average = make_actor_average(cfg, loss)
+    actors = actor_weights(loss, average)  # online, TD3's target and the average, by eval.actor's names
+    # the authors' best policy: the actors at the best mean of the last training returns
+    best_policy = BestPolicy(actors, every_frames=cfg.eval.best_policy.every_frames, window=cfg.eval.best_policy.window)
 
     # --- Algorithm 1's TD3 batches get the reward of the *current* D (and RND predictor) at sample
     # time (reward.source=env: the env's alone), D once per distinct stored row of a block; DDPGfD's
@@ -122,6 +127,7 @@ def main(cfg):  # noqa: F821
         **{f"optim_{name}": optimizer for name, optimizer in optimizers.items()},
         **({"recent": FilledRows(recent)} if recent is not replay else {}),
         **({"rnd": rnd} if rnd is not None else {}),
+        **({"actor_average": average} if average is not None else {}),
         # components load in name order: the priorities after the replay's rows they are for
         **({"replay_priorities": sail_batches} if cfg.algo.per is not None else {}),
     }
@@ -137,7 +143,7 @@ def main(cfg):  # noqa: F821
 
     # --- Algorithm 1's steps
     update_teacher = TeacherUpdate(teacher, alpha_scheduler, adaptive=cfg.algo.adaptive)
-    evaluations = make_evaluations(cfg, eval_envs, actor, loss, run, teacher_return, loggers, run_dir)
+    evaluations = make_evaluations(cfg, eval_envs, actor, actors, run, teacher_return, loggers, run_dir)
     update = make_prioritized_update(cfg, make_update(cfg, loss, optimizers, target_updater), sail_batches, loss)
     td3_block = make_td3_block(
         cfg, sail_batches, update, actor, loss, alpha_scheduler, optimizers, gradient_steps=run["gradient_steps"]
@@ -172,6 +178,8 @@ def main(cfg):  # noqa: F821
             metrics.update(finished_episodes(data, best_policy, before=before, frames=frames))
             for block in learning_blocks:  # optim.block_order: the SAIL authors' TD3 block, then D block
                 metrics.update(block(before, frames, data))
+            if average is not None:  # follows the weights the blocks left
+                average.update(before=before, frames=frames)
             # NaN/inf stops the run here, at the logging cadence (and before any checkpoint), before
             # the weights reach the workers, an evaluation or a log.
             log_now = frames - last_log >= cfg.logger.log_every_frames or crossings(

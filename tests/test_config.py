@@ -165,7 +165,10 @@ def test_optional_blocks_are_typed_when_set():
         (["algo.reward.shift=inf"], "algo.reward.shift=inf: must be a finite number"),
         (["optim.actor_preactivation_coef=-1e-3"], "optim.actor_preactivation_coef=-0.001: must be a finite number"),
         (["algo=sail_sac", "optim.actor_preactivation_coef=1e-3"], "and 0 unless algo.learner=td3"),
-        (["algo=sail_sac", "eval.other_actor=true"], "eval.other_actor=True: is TD3's (algo.learner=td3)"),
+        (["algo=sail_sac", "eval.other_actor=true"], "eval.other_actor=True: needs a second actor"),
+        (["eval.actor=average"], "eval.actor='average': average needs eval.average_frames > 0"),
+        (["eval.average_frames=-1"], "eval.average_frames=-1: must be >= 0"),
+        (["algo=gail", "eval.average_frames=10000"], "eval.average_frames=10000: is the off-policy learners'"),
         (["algo=sail_sac", "eval.actor=target"], "eval.actor='target': target is TD3's (algo.learner=td3)"),
         (["algo.alpha.initial=1.5"], "config algo.alpha.initial=1.5: must be in [0, 1] (a teacher share)"),
         (["algo=sail_no_lfd", "algo.alpha.final=-0.1"], "config algo.alpha.final=-0.1: must be in [0, 1]"),
@@ -432,7 +435,7 @@ def test_actor_saturation_on_the_agent_rows():
 
 
 def test_target_actor_evaluation_swaps_the_weights_in_and_back():
-    """actor_returns(which="target") runs the actor with the loss's target weights, then restores the
+    """actor_returns(weights=target's) runs the actor with the loss's target weights, then restores the
     actor's, and leaves the loss's target tensors the same objects (what the run saves and Polyak-updates)."""
     import copy
 
@@ -459,7 +462,7 @@ def test_target_actor_evaluation_swaps_the_weights_in_and_back():
     loss.target_actor_network_params.to_module(reference)
 
     env.set_seed(0)
-    swapped = sum(actor_returns(env, actor, loss, "target", 2, 20)) / 2
+    swapped = sum(actor_returns(env, actor, loss.target_actor_network_params, 2, 20)) / 2
     env.set_seed(0)
     assert swapped == evaluate(env, reference, 2, 20)
     env.set_seed(0)
@@ -570,11 +573,11 @@ def test_best_policy_keeps_the_weights_at_the_best_window_mean_and_resumes(tmp_p
     a strictly higher mean keeps the actor's and the target actor's weights of that moment; the
     state survives a checkpoint, and best_policy.pt loads into another loss."""
     import torch
-    from run_utils import BestPolicy, load_best_policy
+    from run_utils import BestPolicy, actor_weights, load_best_policy
     from torchrl.checkpoint import Checkpoint
 
     actor, loss, _ = _td3_loss()
-    best = BestPolicy(loss, every_frames=1000, window=3)
+    best = BestPolicy(actor_weights(loss), every_frames=1000, window=3)
 
     def shift(value):
         with torch.no_grad():
@@ -609,7 +612,7 @@ def test_best_policy_keeps_the_weights_at_the_best_window_mean_and_resumes(tmp_p
     best.write(tmp_path / "best_policy.pt")
 
     _, other_loss, _ = _td3_loss()
-    resumed = BestPolicy(other_loss, every_frames=1000, window=3)
+    resumed = BestPolicy(actor_weights(other_loss), every_frames=1000, window=3)
     Checkpoint(best_policy=resumed).load(tmp_path / "ckpt")
     assert (resumed.frames, resumed.mean, resumed.returns) == (2000, 40.0, [0.0, 20.0, 100.0])
     assert (resumed.kept["target_actor"] == kept_target).all()
@@ -622,13 +625,74 @@ def test_best_policy_keeps_the_weights_at_the_best_window_mean_and_resumes(tmp_p
 
 def test_best_policy_writes_nothing_before_a_training_episode_ends(tmp_path):
     import torch
-    from run_utils import BestPolicy
+    from run_utils import BestPolicy, actor_weights
 
     _, loss, _ = _td3_loss()
-    best = BestPolicy(loss, every_frames=500, window=100)
+    best = BestPolicy(actor_weights(loss), every_frames=500, window=100)
     assert best.observe(torch.tensor([]), before=0, frames=500) is False
     best.write(tmp_path / "best_policy.pt")
     assert not (tmp_path / "best_policy.pt").exists() and best.record()["frames"] is None
+
+
+def test_actor_average_is_uniform_then_exponential_in_frames_and_resumes(tmp_path):
+    """Hand-computed: nothing before start; then the uniform average of the weights since start
+    while n / (frames - start) is the larger step; then 1 - exp(-n / memory_frames). The state
+    survives a checkpoint."""
+    import math
+
+    import torch
+    from run_utils import ActorAverage
+    from tensordict import TensorDict
+    from torchrl.checkpoint import Checkpoint
+
+    live = TensorDict({"layer": {"w": torch.zeros(2)}})
+    average = ActorAverage(live, memory_frames=2000, start=1000)
+    steps = [
+        # (the actor's weight, before, frames, the average after)
+        (1.0, 0, 500, 0.0),  # before start: unchanged
+        (2.0, 500, 1500, 2.0),  # 500 frames since start: step 1 (the uniform average of one)
+        (4.0, 1500, 2500, (500 * 2.0 + 1000 * 4.0) / 1500),  # step 1000/1500 > 1 - exp(-0.5)
+        (10.0, 2500, 6500, None),  # step 1 - exp(-2) = 0.865 > 4000/5500 = 0.727
+    ]
+    for weight, before, frames, expected in steps:
+        live["layer", "w"].fill_(weight)
+        average.update(before=before, frames=frames)
+        if expected is None:
+            expected = 10 / 3 - math.expm1(-2.0) * (10.0 - 10 / 3)
+        assert average.weights["layer", "w"].tolist() == pytest.approx([expected] * 2), frames
+    assert live["layer", "w"].tolist() == [10.0, 10.0]  # the actor's own weights are untouched
+    Checkpoint(actor_average=average).save(tmp_path / "ckpt")
+    resumed = ActorAverage(TensorDict({"layer": {"w": torch.ones(2)}}), memory_frames=2000, start=1000)
+    Checkpoint(actor_average=resumed).load(tmp_path / "ckpt")
+    assert torch.equal(resumed.weights["layer", "w"], average.weights["layer", "w"])
+
+
+def test_best_policy_keeps_the_averaged_actor_and_loads_it(tmp_path):
+    """With an averaged actor, the best policy keeps its weights too, and best_policy.pt loads them
+    by eval.actor's name average."""
+    import torch
+    from run_utils import ActorAverage, BestPolicy, actor_weights, load_best_policy
+
+    _, loss, _ = _td3_loss()
+    average = ActorAverage(loss.actor_network_params, memory_frames=1000, start=0)
+    with torch.no_grad():
+        average.weights.apply_(lambda tensor: tensor.fill_(0.25))
+    actors = actor_weights(loss, average)
+    assert list(actors) == ["online", "target", "average"]
+    best = BestPolicy(actors, every_frames=500, window=2)
+    assert best.observe(torch.tensor([1.0]), before=0, frames=500)
+    with torch.no_grad():
+        average.weights.apply_(lambda tensor: tensor.fill_(0.5))  # after the keep: not in the kept copy
+    assert all((value == 0.25).all() for value in best.params("average").values(True, True))
+    best.write(tmp_path / "best_policy.pt")
+    _, other_loss, _ = _td3_loss()
+    load_best_policy(tmp_path / "best_policy.pt", other_loss, "average")
+    assert all((value == 0.25).all() for value in other_loss.actor_network_params.values(True, True))
+    plain = BestPolicy(actor_weights(loss), every_frames=500, window=2)
+    plain.observe(torch.tensor([1.0]), before=0, frames=500)
+    plain.write(tmp_path / "plain.pt")
+    with pytest.raises(ValueError, match="holds no average actor"):
+        load_best_policy(tmp_path / "plain.pt", other_loss, "average")
 
 
 def test_actor_drift_measures_the_blocks_change_and_the_target_gap():

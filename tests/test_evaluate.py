@@ -19,8 +19,8 @@ EGL = {"MUJOCO_GL": "egl"}
 
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
-    """2000 frames of SAIL on Hopper with the shipped teacher: one evaluation of the actor and one of its
-    target actor, and one video, at the end."""
+    """2000 frames of SAIL on Hopper with the shipped teacher: one evaluation of the actor, one of its
+    target actor and one of its averaged actor (500-frame memory), and one video, at the end."""
     run_dir = tmp_path_factory.mktemp("evaluate") / "run"
     run(
         run_dir,
@@ -32,6 +32,7 @@ def trained(tmp_path_factory):
         "eval.every_frames=2000",
         "eval.episodes=2",
         "eval.other_actor=true",
+        "eval.average_frames=500",
         "eval.best_policy.episodes=2",
         "checkpoint.every_frames=1000",
         "eval.video_every_frames=2000",
@@ -70,8 +71,8 @@ def test_target_actor_has_the_checkpoints_target_weights(trained):
 
     cfg, _ = load_run(trained)
     state = saved(trained, "loss")["loss"]
-    for target, prefix in ((False, "actor_network_params."), (True, "target_actor_network_params.")):
-        actor = load_actor(cfg, make_env(cfg, 0), checkpoint_dir(trained), target=target)
+    for which, prefix in (("online", "actor_network_params."), ("target", "target_actor_network_params.")):
+        actor = load_actor(cfg, make_env(cfg, 0), checkpoint_dir(trained), which)
         weights = TensorDict.from_module(actor).flatten_keys(".")
         assert len(weights.keys()) == 8  # three linear layers' weights and biases, the action bounds
         for key, value in weights.items():
@@ -96,6 +97,36 @@ def test_training_evaluates_the_target_actor_on_the_evaluations_start_states(tra
     assert lowest == pytest.approx(result["dense_return"]["min"], rel=1e-6)
     [(_, below)] = read_scalar(trained, "eval/below_teacher_target")
     assert below == 1.0  # 2000 frames of training: both episodes below the Hopper teacher's 1480.7
+
+
+def test_training_evaluates_the_averaged_actor_and_evaluate_loads_it(trained, tmp_path):
+    """eval.average_frames with eval.other_actor: the logged eval/return_average is evaluate.py's
+    actor=average on the training eval env's seed, whose weights are the checkpoint's average, which
+    is neither the actor nor its target actor."""
+    import torch
+    from example_runner import read_scalar, saved
+    from tensordict import TensorDict
+
+    sys.path.insert(0, str(REPO / "examples"))
+    from evaluate import load_actor, load_run
+    from utils import make_env
+
+    from torchrl_sail.harness import checkpoint_dir
+
+    [(frames, logged)] = read_scalar(trained, "eval/return_average")
+    evaluate(f"run_dir={trained}", "episodes=2", "seed=10000", "actor=average", f"out={tmp_path / 'average.json'}")
+    result = json.loads((tmp_path / "average.json").read_text())
+    assert frames == 2000 and result["actor"] == "average"
+    assert result["dense_return"]["mean"] == pytest.approx(logged, rel=1e-6)
+    cfg, _ = load_run(trained)
+    average = saved(trained, "actor_average")["actor_average"]["weights"]
+    weights = TensorDict.from_module(load_actor(cfg, make_env(cfg, 0), checkpoint_dir(trained), "average"))
+    for key, value in weights.flatten_keys(".").items():
+        torch.testing.assert_close(value.data, average[key], rtol=0, atol=0)
+    loss = saved(trained, "loss")["loss"]
+    first_layer = "module.0.module.0.weight"
+    for prefix in ("actor_network_params.", "target_actor_network_params."):
+        assert not torch.equal(average[first_layer], loss[prefix + first_layer])
 
 
 def test_evaluate_reproduces_the_best_policys_evaluation(trained, tmp_path):

@@ -139,6 +139,7 @@ def test_resume_restores_state(tmp_path, teacher_dir):
         f"teacher.path={teacher_dir / HOPPER}",
         "checkpoint.every_frames=1000",
         "logger.backends=[csv]",
+        "eval.average_frames=1000",
         *TINY,
     ]
     run(run_dir, *common, "collector.total_frames=2000")
@@ -153,6 +154,7 @@ def test_resume_restores_state(tmp_path, teacher_dir):
         "optim_critic",
         "optim_discriminator",
         "best_policy",
+        "actor_average",
     )
     before = saved(run_dir, *names)
 
@@ -181,7 +183,7 @@ def test_resume_restores_state(tmp_path, teacher_dir):
         after["teacher"].storage.get(teachers[1].stored_rows()).to_tensordict().get("observation"),
     )
     assert after["alpha"] == before["alpha"] == {"alpha": 0.5, "switched_at_frame": None}
-    for name in ("loss", "discriminator"):
+    for name in ("loss", "discriminator", "actor_average"):
         torch.testing.assert_close(after[name], before[name], rtol=0, atol=0)
     for name in ("optim_actor", "optim_critic", "optim_discriminator"):
         steps = [s["step"] for s in before[name]["state"].values()]

@@ -342,33 +342,60 @@ def test_discriminator_block_skips_steps_beyond_max_accuracy():
     assert block(1000, 1500, None)["d/skipped"] == 1.0 and d_loss.weight.item() == 0.0
 
 
-def test_evaluations_at_their_cadence_with_the_other_actor_and_videos(monkeypatch):
+def test_evaluations_at_their_cadence_with_the_other_actors_and_videos(monkeypatch):
     evaluated, other, videos = [], [], []
     monkeypatch.setattr(
         loop,
         "record_evaluation",
-        lambda env, actor, loss, cfg, run, frames, teacher: evaluated.append((env, frames)) or {"eval/return": 10.0},
+        lambda env, actor, actors, cfg, run, frames, teacher: evaluated.append((env, frames)) or {"eval/return": 10.0},
     )
+    returns = {None: [30.0, 10.0, 20.0], "avg": [40.0, 50.0, 60.0]}  # online's (its own weights), the average's
     monkeypatch.setattr(
         loop,
         "actor_returns",
-        lambda env, actor, loss, which, episodes, steps: other.append((env, which)) or [30.0, 10.0, 20.0],
+        lambda env, actor, weights, episodes, steps: other.append((env, weights)) or returns[weights],
     )
     cfg = SimpleNamespace(
         eval=SimpleNamespace(actor="target", every_frames=1000, video_every_frames=2000, episodes=3),
         env=SimpleNamespace(max_episode_steps=1000),
     )
-    envs = {"evaluated": "e", "other": "o", "video": "v"}
-    evaluations = loop.Evaluations(cfg, None, None, {}, 15.0, envs, lambda env, actor, frames: videos.append(frames))
+    envs = {"evaluated": "e", "others": {"online": "o", "average": "a"}, "video": "v"}
+    actors = {"online": "own", "target": "tgt", "average": "avg"}
+    evaluations = loop.Evaluations(cfg, None, actors, {}, 15.0, envs, lambda env, actor, frames: videos.append(frames))
     assert evaluations(0, 500) == {}
     assert evaluations(500, 1000) == {
         "eval/return": 10.0,
         "eval/return_online": 20.0,
         "eval/min_return_online": 10.0,
         "eval/below_teacher_online": 1 / 3,  # 10 of (30, 10, 20) below the teacher's 15
+        "eval/return_average": 50.0,
+        "eval/min_return_average": 40.0,
+        "eval/below_teacher_average": 0.0,
     }
     evaluations(1500, 2000)
-    assert evaluated == [("e", 1000), ("e", 2000)] and other == [("o", "online")] * 2 and videos == [2000]
+    assert evaluated == [("e", 1000), ("e", 2000)] and other == [("o", None), ("a", "avg")] * 2 and videos == [2000]
+
+
+def test_eval_envs_one_per_other_actor_the_run_has():
+    """eval.other_actor: an env for every actor but eval.actor: online, TD3's target, the average."""
+    made = []
+
+    def make_env(cfg, seed):
+        made.append(seed)
+        return f"env{len(made)}"
+
+    def cfg(learner, actor, other_actor, average_frames):
+        return SimpleNamespace(
+            seed=3,
+            algo=SimpleNamespace(learner=learner),
+            eval=SimpleNamespace(actor=actor, other_actor=other_actor, average_frames=average_frames),
+        )
+
+    assert loop.make_eval_envs(cfg("td3", "online", False, 5000), make_env)["others"] == {}
+    assert list(loop.make_eval_envs(cfg("td3", "target", True, 0), make_env)["others"]) == ["online"]
+    assert list(loop.make_eval_envs(cfg("td3", "average", True, 5000), make_env)["others"]) == ["online", "target"]
+    assert list(loop.make_eval_envs(cfg("sac", "online", True, 5000), make_env)["others"]) == ["average"]
+    assert set(made) == {10_003}  # every one on the evaluation's seed
 
 
 def test_evaluation_metrics_of_an_evaluations_episodes():
