@@ -20,6 +20,8 @@ the run logged it, the share of the evaluation's episodes below the teacher (a f
 in ten, or a collapse). How many falls were over by the next evaluation tells a dip of one
 evaluation from a collapse that lasts; how many of the target actor's falls came at a fall of the
 online actor tells whether the target actor, an average of the actor's recent weights, falls with it.
+A run that also evaluated an averaged actor (``eval.average_frames``, ``eval/return_average``) gets
+its fall share beside the other two, and how many of its falls came with a fall of the online actor.
 """
 
 from __future__ import annotations
@@ -44,13 +46,19 @@ DIAGNOSTICS = (
 PROMOTED = "teacher/num_promoted"
 
 
+ACTORS = ("online", "target", "average")
+
+
 def actors(folder: Path, tag: str = "eval/return") -> dict[str, dict[int, float]]:
-    """The run's evaluations by actor, ``{"online": {frames: value}, "target": {...}}``, of ``tag``
-    (``eval/below_teacher``: the share of the evaluation's episodes below the teacher)."""
-    config = yaml.safe_load((folder / "config.yaml").read_text())
-    evaluated = (config.get("eval") or {}).get("actor", "online")  # a run of an earlier version: online
-    other = "online" if evaluated == "target" else "target"
-    return {evaluated: dict(read_scalar(folder, tag)), other: dict(read_scalar(folder, f"{tag}_{other}"))}
+    """The run's evaluations by actor, ``{"online": {frames: value}, "target": {...}, "average": {...}}``,
+    of ``tag`` (``eval/below_teacher``: the share of the evaluation's episodes below the teacher);
+    empty for an actor the run did not evaluate."""
+    evaluated = (run_config(folder).get("eval") or {}).get("actor", "online")  # an earlier version's: online
+    return {name: dict(read_scalar(folder, tag if name == evaluated else f"{tag}_{name}")) for name in ACTORS}
+
+
+def run_config(folder: Path) -> dict:
+    return yaml.safe_load((folder / "config.yaml").read_text()) or {}
 
 
 def window_mean(series: list[tuple[int, float]], start: int, end: int) -> float | None:
@@ -84,11 +92,15 @@ def run_rows(folder: Path, window: int, given_teacher: float | None = None) -> t
     teacher = teacher_return(folder, given_teacher)
     curves = actors(folder)
     if not curves["online"]:
-        raise ValueError(f"{folder}: no eval/return_online: the run evaluated its target actor alone")
+        raise ValueError(
+            f"{folder}: no eval/return_online: the run evaluated its {run_config(folder)['eval']['actor']} actor "
+            f"alone (eval.other_actor=false)"
+        )
     below = actors(folder, "eval/below_teacher")  # empty for runs of versions that did not log it
-    curves["target"] = curves["target"] or None  # None: the target actor was not evaluated
+    for name in ("target", "average"):
+        curves[name] = curves[name] or None  # None: not evaluated
     first = {name: first_pass(curve, teacher) for name, curve in curves.items()}
-    passes = [f for f in first.values() if f is not None]
+    passes = [f for f in (first["online"], first["target"]) if f is not None]
     frames = sorted(set(curves["online"]) | set(curves["target"] or {}))
     after = [f for f in frames if passes and f > min(passes)]
 
@@ -133,7 +145,14 @@ def run_rows(folder: Path, window: int, given_teacher: float | None = None) -> t
         "target_evaluated": curves["target"] is not None,
         "online_only": sum(row["online_alone"] for row in rows) if curves["target"] is not None else None,
         "target_only": sum(row["target_alone"] for row in rows) if curves["target"] is not None else None,
+        # the averaged actor (eval.average_frames), judged from its own first pass on its own curve
+        "average_frames": (run_config(folder).get("eval") or {}).get("average_frames"),
+        "average": None if curves["average"] is None else fall_share(sorted(curves["average"].items()), teacher),
+        "average_with_online": None,
     }
+    if curves["average"] is not None:  # its falls at an evaluation where the online actor fell too
+        fell = [f for f in curves["average"] if judged("average", f)]
+        line["average_with_online"] = sum(judged("online", f) is True for f in fell)
     return line, rows
 
 
@@ -180,10 +199,11 @@ def report(folders: list[Path], window: int, given_teacher: float | None = None)
         "| online fell alone | target fell alone |",
         "|---|---|---|---|---|---|---|",
     ]
-    pooled = []
+    pooled, lines_of_runs = [], []
     for folder in folders:
         line, rows = run_rows(folder, window, given_teacher)
         pooled += standardized(rows)
+        lines_of_runs.append(line)
         lines.append(
             f"| `{line['run']}` | {line['teacher']:.1f} | {line['passed_at'] or '-'} | {shown(line['online'])} "
             f"| {shown(line['target'], line['target_evaluated'])} "
@@ -234,7 +254,43 @@ def report(folders: list[Path], window: int, given_teacher: float | None = None)
         f"| {mean_of(online_fell, 'online_below')} | {mean_of(online_held, 'online_below')} "
         f"| {mean_of(target_fell, 'target_below')} | {mean_of(target_held, 'target_below')} |"
     )
-    return "\n".join(lines)
+    return "\n".join(lines + average_report(lines_of_runs))
+
+
+def average_report(runs: list[dict]) -> list[str]:
+    """The averaged actor's fall share beside the online and target actors' on the runs that
+    evaluated it (``eval.average_frames`` with ``eval.other_actor=true``), and pooled; nothing where
+    none did."""
+    runs = [line for line in runs if line["average"] is not None]
+    if not runs:
+        return []
+    lines = [
+        "",
+        "The averaged actor (`eval.average_frames`), on the runs that evaluated it:",
+        "",
+        "| run | memory (frames) | fall share: averaged actor | online actor | target actor "
+        "| averaged actor's falls with an online fall |",
+        "|---|---|---|---|---|---|",
+    ]
+    for line in runs:
+        falls_of = line["average"]["falls"] if line["average"]["share"] is not None else 0
+        lines.append(
+            f"| `{line['run']}` | {line['average_frames']} | {shown(line['average'])} | {shown(line['online'])} "
+            f"| {shown(line['target'], line['target_evaluated'])} | {line['average_with_online']} of {falls_of} |"
+        )
+    pooled = {}
+    for name in ("average", "online", "target"):
+        shares = [line[name] for line in runs if line[name] is not None and line[name]["share"] is not None]
+        falls, evaluations = sum(x["falls"] for x in shares), sum(x["evaluations"] for x in shares)
+        pooled[name] = (
+            shown({"share": falls / evaluations, "falls": falls, "evaluations": evaluations}) if evaluations else "-"
+        )
+    lines += [
+        "",
+        f"Pooled over these runs: the averaged actor {pooled['average']}, the online actor {pooled['online']}, "
+        f"the target actor {pooled['target']} (each from its own first pass).",
+    ]
+    return lines
 
 
 def main(argv: list[str] | None = None) -> int:

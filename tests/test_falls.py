@@ -132,6 +132,32 @@ def test_a_run_that_evaluated_the_target_actor_alone_is_refused(tmp_path):
         falls.run_rows(tmp_path / "run", window=10_000)
 
 
+def test_the_averaged_actors_fall_share_beside_the_other_two(tmp_path):
+    """A run that evaluated the averaged actor too: its fall share on its own curve from its own first
+    pass, its falls that came with an online fall, and the pooled line; runs without it add nothing."""
+    average = {10_000: 120, 20_000: 90, 30_000: 130, 40_000: 140, 50_000: 80}
+    write_run(
+        tmp_path / "run",
+        [*rows("eval/return", "eval/return_target"), *(("eval/return_average", f, v) for f, v in average.items())],
+        evaluated="online",
+    )
+    config = tmp_path / "run" / "config.yaml"
+    config.write_text(config.read_text() + "  average_frames: 20000\n")
+    line, _ = falls.run_rows(tmp_path / "run", window=10_000)
+    # passed at 10k (120 > 100); after it 90 and 80 fell of (90, 130, 140, 80)
+    assert line["average"] == {"share": 0.5, "falls": 2, "evaluations": 4} and line["average_frames"] == 20_000
+    # 20k: the online actor had just passed (150), not a fall; 50k: the online actor fell (30)
+    assert line["average_with_online"] == 1
+    text = falls.report([tmp_path / "run"], window=10_000)
+    assert "| `" + str(tmp_path / "run") + "` | 20000 | 50.0% (2/4) | 66.7% (2/3) | 33.3% (1/3) | 1 of 2 |" in text
+    assert "Pooled over these runs: the averaged actor 50.0% (2/4), the online actor 66.7% (2/3)" in text
+    write_run(tmp_path / "plain", rows("eval/return", "eval/return_target"), evaluated="online")
+    assert "averaged actor" not in falls.report([tmp_path / "plain"], window=10_000)
+    write_run(tmp_path / "alone", [("eval/return", 10_000, 50.0)], evaluated="average")
+    with pytest.raises(ValueError, match="the run evaluated its average actor alone"):
+        falls.run_rows(tmp_path / "alone", window=10_000)
+
+
 def test_an_unfinished_run_needs_its_teachers_return(tmp_path):
     write_run(tmp_path / "run", rows(), summary=False)
     with pytest.raises(ValueError, match="no summary.json .* --teacher-return"):
