@@ -19,7 +19,8 @@ teachers stage's), ``--stages preact`` SAIL with the actor's pre-tanh penalty
 paper's teachers, ``--stages centred`` SAIL with its reward centred at D = 1/2
 (``algo.reward.shift=-log 2``; teacher labels ``<teacher>-centred``), and ``--stages logit`` SAIL with
 D's logit (``algo.reward.kind=airl``; ``<teacher>-logit``) on Swimmer and HalfCheetah, none a default.
-``--stages trusted`` is the trusted-default confirmation; after it, with the default it decides,
+``--stages trusted`` is the trusted-default confirmation, ``--stages average`` tunes an averaged
+actor (``eval.average_frames``) on tuning seeds 100-101; after the confirmation, with the default it decides,
 ``ant`` runs SAIL and DAC on Ant-v4 with the authors' Ant teacher as recorded (label ``paper``)
 and on the columns Ant-v4 reproduces (``paper-nocontact``), ``comparison`` the paper's other rows
 and ``table1`` SAIL at 1M frames (seeds 0-2 each), none a default.
@@ -110,6 +111,14 @@ TRUSTED_ORDER = (
     ("Swimmer-v4", "paper"),
     ("Hopper-v4", "shipped"),
 )
+# The averaged actor's tuning, on tuning seeds (>= 100): the candidate's training where its runs fell
+# most (Hopper, the paper's teacher) and where a new user's first run fell (Walker2d, the shipped
+# teacher), each run also evaluating an average of the actor's weights over one memory
+# (eval.average_frames; eval.other_actor=true puts all three actors on the same start states).
+# Training does not depend on the memory: one run per memory, labels "<teacher>-average<memory>k".
+AVERAGE_MEMORIES = (10_000, 30_000)
+AVERAGE_SEEDS = (100, 101)
+AVERAGE_TEACHERS = (("Hopper-v4", "paper"), ("Walker2d-v4", "shipped"))
 # The paper's whole comparison with its teachers, seeds 0-2 (its own scale): Table 1's exploration
 # variants (Curiosity, Entropy) and Figure 2's baselines on the four envs, Figure 3's on-policy D and
 # Figure 4's ablations on Hopper and HalfCheetah, at 300k frames; SAIL at Table 1's 1M frames.
@@ -138,6 +147,9 @@ DIAGNOSTICS = (
     "eval/min_return",
     "eval/min_return_target",
     "eval/min_return_online",
+    "eval/return_average",
+    "eval/below_teacher_average",
+    "eval/min_return_average",
     "actor/change",
     "actor/target_gap",
     "train/dense_return",
@@ -273,6 +285,20 @@ def plan() -> list[Cell]:
         ]
         if seed >= 3:
             cells += [Cell("trusted", env, method, seed, 300_000) for env in ENVS for method in ("sail", "dac")]
+    for seed in AVERAGE_SEEDS:
+        cells += [
+            Cell(
+                "average",
+                env,
+                "sail",
+                seed,
+                300_000,
+                f"{label}-average{memory // 1000}k",
+                (*TRUSTED, f"eval.average_frames={memory}"),
+            )
+            for memory in AVERAGE_MEMORIES
+            for env, label in AVERAGE_TEACHERS
+        ]
     # Beyond the paper's four envs, after the trusted default is decided (its SAIL rows use the default
     # of the commit they run from): SAIL and DAC on Ant-v4 with the authors' teacher as recorded
     # ("paper": 111 columns, the contact forces on) and on the columns Ant-v4 reproduces
@@ -501,6 +527,7 @@ def main(argv: list[str] | None = None) -> int:
             "centred",
             "logit",
             "trusted",
+            "average",
             "ant",
             "comparison",
             "table1",
@@ -508,8 +535,9 @@ def main(argv: list[str] | None = None) -> int:
         help=f"the stages to run (default: {' '.join(DEFAULT_STAGES)}) or, with --collect, to copy (default: "
         "all); weak (SAIL with weak teachers), precision (fp32 against bf16: it needs bf16 hardware), preact "
         "(SAIL with the actor's pre-tanh penalty), centred (SAIL with its reward centred at D = 1/2) and logit "
-        "(SAIL with D's logit), trusted (the trusted-default confirmation), ant (SAIL and DAC on Ant-v4), "
-        "comparison (the paper's other rows) and table1 (SAIL at 1M) are never defaults",
+        "(SAIL with D's logit), trusted (the trusted-default confirmation), average (an averaged actor's "
+        "tuning), ant (SAIL and DAC on Ant-v4), comparison (the paper's other rows) and table1 (SAIL at 1M) are "
+        "never defaults",
     )
     parser.add_argument(
         "--envs",

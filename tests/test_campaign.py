@@ -41,9 +41,10 @@ def test_plan_fills_the_table_seed_0_first():
         "centred": 6,
         "logit": 7,
         "trusted": 8,
-        "ant": 9,
-        "comparison": 10,
-        "table1": 11,
+        "average": 9,
+        "ant": 10,
+        "comparison": 11,
+        "table1": 12,
     }
     stages = [order[c.stage] for c in cells]
     assert stages == sorted(stages)
@@ -287,7 +288,7 @@ def test_matrix_records_every_stage_and_label(tmp_path, monkeypatch):
         campaign.subprocess, "run", lambda cmd, **kw: launched.append(cmd) or argparse.Namespace(returncode=0)
     )
     assert campaign.main(["--teachers-dir", str(teachers), "--out", str(tmp_path / "out"), "--jobs", "1"]) == 0
-    never = ("weak", "precision", "preact", "centred", "logit", "trusted", "ant", "comparison", "table1")
+    never = ("weak", "precision", "preact", "centred", "logit", "trusted", "average", "ant", "comparison", "table1")
     default = [c for c in campaign.plan() if c.teacher != "random" and c.stage not in never]
     assert len(launched) == len(default)  # not the weak, precision and remedy stages: never defaults
     main = json.loads((tmp_path / "out" / "main" / "matrix.json").read_text())
@@ -425,6 +426,32 @@ def test_trusted_stage_confirms_the_candidate_on_eight_teachers_beside_its_compa
     assert len(lines) == 74 and "teacher.path=" not in lines[0]  # the shipped teacher: the env's default
     assert lines[0].endswith(f"hydra.run.dir={out / 'trusted' / 'shipped-trusted' / 'Swimmer-v4' / 'sail' / 'seed0'}")
     assert f"teacher.path={teachers / campaign.PAPER_TEACHERS['HalfCheetah-v4']} " in lines[1]
+
+
+def test_average_stage_tunes_the_averaged_actors_memory_on_tuning_seeds(tmp_path, capsys):
+    """Seeds 100-101 only; Hopper with the paper's teacher and Walker2d with the shipped one; the
+    candidate's training with each memory, every actor evaluated; the averaged actor's curve collected."""
+    cells = [c for c in campaign.plan() if c.stage == "average"]
+    assert len(cells) == 8 and len(set(cells)) == 8 and {c.seed for c in cells} == {100, 101}
+    assert Counter((c.env, c.teacher) for c in cells) == {
+        (env, f"{label}-average{memory}k"): 2
+        for env, label in (("Hopper-v4", "paper"), ("Walker2d-v4", "shipped"))
+        for memory in (10, 30)
+    }
+    for cell in cells:
+        memory = int(cell.teacher.split("average")[1].removesuffix("k")) * 1000
+        assert cell.overrides == (*campaign.TRUSTED, f"eval.average_frames={memory}")
+    assert "eval.other_actor=true" in campaign.TRUSTED and "eval/return_average" in campaign.DIAGNOSTICS
+    teachers = tmp_path / "teachers"
+    teachers.mkdir()
+    (teachers / campaign.PAPER_TEACHERS["Hopper-v4"]).touch()
+    out = tmp_path / "out"
+    assert campaign.main(["--teachers-dir", str(teachers), "--out", str(out), "--stages", "average", "--dry-run"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 8 and f"teacher.path={teachers / campaign.PAPER_TEACHERS['Hopper-v4']}" in lines[0]
+    assert "teacher.path=" not in lines[1] and lines[1].endswith(
+        f"hydra.run.dir={out / 'average' / 'shipped-average10k' / 'Walker2d-v4' / 'sail' / 'seed100'}"
+    )
 
 
 def test_status_counts_done_started_and_waiting_runs_and_refuses_an_unreadable_checkpoint(tmp_path, capsys):
