@@ -20,7 +20,7 @@ paper's teachers, ``--stages centred`` SAIL with its reward centred at D = 1/2
 (``algo.reward.shift=-log 2``; teacher labels ``<teacher>-centred``), and ``--stages logit`` SAIL with
 D's logit (``algo.reward.kind=airl``; ``<teacher>-logit``) on Swimmer and HalfCheetah, none a default.
 ``--stages trusted`` is the trusted-default confirmation, ``--stages average`` tunes an averaged
-actor (``eval.average_frames``) on tuning seeds 100-101; after the confirmation, with the default it decides,
+actor (``eval.average_frames``) on tuning seeds 100-103; after the confirmation, with the default it decides,
 ``ant`` runs SAIL and DAC on Ant-v4 with the authors' Ant teacher as recorded (label ``paper``)
 and on the columns Ant-v4 reproduces (``paper-nocontact``), ``comparison`` the paper's other rows
 and ``table1`` SAIL at 1M frames (seeds 0-2 each), none a default.
@@ -115,9 +115,9 @@ TRUSTED_ORDER = (
 # most (Hopper, the paper's teacher) and where a new user's first run fell (Walker2d, the shipped
 # teacher), each run also evaluating an average of the actor's weights over one memory
 # (eval.average_frames; eval.other_actor=true puts all three actors on the same start states).
-# Training does not depend on the memory: one run per memory, labels "<teacher>-average<memory>k".
-AVERAGE_MEMORIES = (10_000, 30_000)
-AVERAGE_SEEDS = (100, 101)
+# Training does not depend on the memory, so each memory has seeds of its own rather than rerunning
+# the other's training: labels "<teacher>-average<memory>k".
+AVERAGE_SEEDS = {10_000: (100, 101), 30_000: (102, 103)}
 AVERAGE_TEACHERS = (("Hopper-v4", "paper"), ("Walker2d-v4", "shipped"))
 # The paper's whole comparison with its teachers, seeds 0-2 (its own scale): Table 1's exploration
 # variants (Curiosity, Entropy) and Figure 2's baselines on the four envs, Figure 3's on-policy D and
@@ -285,7 +285,7 @@ def plan() -> list[Cell]:
         ]
         if seed >= 3:
             cells += [Cell("trusted", env, method, seed, 300_000) for env in ENVS for method in ("sail", "dac")]
-    for seed in AVERAGE_SEEDS:
+    for pair in zip(*AVERAGE_SEEDS.values(), strict=True):  # one seed of each memory at a time
         cells += [
             Cell(
                 "average",
@@ -296,7 +296,7 @@ def plan() -> list[Cell]:
                 f"{label}-average{memory // 1000}k",
                 (*TRUSTED, f"eval.average_frames={memory}"),
             )
-            for memory in AVERAGE_MEMORIES
+            for memory, seed in zip(AVERAGE_SEEDS, pair, strict=True)
             for env, label in AVERAGE_TEACHERS
         ]
     # Beyond the paper's four envs, after the trusted default is decided (its SAIL rows use the default

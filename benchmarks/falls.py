@@ -6,22 +6,22 @@ show in the frames before each evaluation that fell.
 A run folder is a live run (``logs/scalars/``) or a results copy (``scalars.csv``) with its
 ``config.yaml`` and, once finished, its ``summary.json`` (its teacher's return; for an unfinished
 run, ``--teacher-return``). Its evaluations (``eval/return``) logged the actor of ``eval.actor``
-and, with ``eval.other_actor=true``, the other one too (``eval/return_target`` or
-``eval/return_online``); a run that evaluated the online actor alone reads "not evaluated" for the
-target actor, and one that evaluated the target actor alone is refused. Per run: the fall share of
-each actor on its own curve (:func:`torchrl_sail.harness.fall_share`; "never passed" where it never
-did), and how often one fell where the other held. Then, pooled over the runs, each diagnostic
-averaged over the ``--window`` frames before an evaluation after either actor's first pass, at each
-actor's falls (from its own first pass) against its other evaluations:
+and, with ``eval.other_actor=true``, the run's other actors too (``eval/return_online``,
+``eval/return_target``, ``eval/return_average``); a run that evaluated the online actor alone reads
+"not evaluated" for the target actor, and one that did not evaluate its online actor is refused. Per
+run: the fall share of each actor on its own curve (:func:`torchrl_sail.harness.fall_share`; "never
+passed" where it never did), and how often one fell where the other held. Then, pooled over the
+runs, each diagnostic averaged over the ``--window`` frames before an evaluation after either
+actor's first pass, at each actor's falls (from its own first pass) against its other evaluations:
 ``actor/change`` and ``actor/target_gap`` (how far a TD3 block moves the actor, how far it is from
 the target actor), ``sail/q_mean``, ``sail/d_reward_mean``, ``train/dense_return`` and the
-trajectories promoted, each as a z-score within its run, so that envs pool; and, where
-the run logged it, the share of the evaluation's episodes below the teacher (a fall of one episode
-in ten, or a collapse). How many falls were over by the next evaluation tells a dip of one
-evaluation from a collapse that lasts; how many of the target actor's falls came at a fall of the
-online actor tells whether the target actor, an average of the actor's recent weights, falls with it.
-A run that also evaluated an averaged actor (``eval.average_frames``, ``eval/return_average``) gets
-its fall share beside the other two, and how many of its falls came with a fall of the online actor.
+trajectories promoted, each as a z-score within its run, so that envs pool; and, where the run
+logged it, the share of the evaluation's episodes below the teacher (a fall of one episode in ten,
+or a collapse). How many falls were over by the next evaluation tells a dip of one evaluation from a
+collapse that lasts; how many of the target actor's falls came at a fall of the online actor tells
+whether the target actor, an average of the actor's recent weights, falls with it. A run that also
+evaluated an averaged actor (``eval.average_frames``, ``eval/return_average``) gets its fall share
+beside the other two, and how many of its falls came with a fall of the online actor.
 """
 
 from __future__ import annotations
@@ -92,9 +92,10 @@ def run_rows(folder: Path, window: int, given_teacher: float | None = None) -> t
     teacher = teacher_return(folder, given_teacher)
     curves = actors(folder)
     if not curves["online"]:
+        evaluated = (run_config(folder).get("eval") or {}).get("actor", "online")
         raise ValueError(
-            f"{folder}: no eval/return_online: the run evaluated its {run_config(folder)['eval']['actor']} actor "
-            f"alone (eval.other_actor=false)"
+            f"{folder}: no eval/return_online: "
+            + ("it logged no evaluation" if evaluated == "online" else f"the run evaluated its {evaluated} actor alone")
         )
     below = actors(folder, "eval/below_teacher")  # empty for runs of versions that did not log it
     for name in ("target", "average"):

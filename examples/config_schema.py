@@ -973,8 +973,8 @@ def _check_eval(cfg: DictConfig) -> None:
                 "eval.other_actor",
                 e.other_actor,
                 not e.other_actor or cfg.algo.learner == "td3" or e.average_frames > 0,
-                "needs a second actor: a TD3 learner's target actor (algo.learner=td3) or an "
-                "averaged one (eval.average_frames > 0)",
+                "needs a second actor: a TD3 learner's target actor (algo.learner=td3) or, for an "
+                "off-policy learner (td3, sac), an averaged one (eval.average_frames > 0)",
             ),
         ]
     )

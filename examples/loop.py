@@ -9,7 +9,7 @@ is one more buffer it fills; the learning blocks (:func:`make_learning_blocks`) 
 authors' frame cadence or after each episode (:class:`FrameCadence`, :class:`EpisodeCadence`), in
 either order; an actor learning-rate decay (:class:`ActorLRDecay`) runs inside :class:`TD3Block`;
 RND's predictor (:class:`PredictorUpdate`) learns inside :class:`DiscriminatorBlock`, which a
-method without a D does not have; the other actor's evaluation and videos are part of
+method without a D does not have; the other actors' evaluations and videos are part of
 :class:`Evaluations`.
 """
 
@@ -19,7 +19,7 @@ import contextlib
 
 import torch
 from omegaconf import DictConfig
-from run_utils import actor_names, actor_returns, crossings, evaluation_metrics, record_evaluation
+from run_utils import actor_names, actor_returns, crossings, evaluation_metrics, record_evaluation, weights_in
 from torchrl import timeit
 from utils import (
     ActorDrift,
@@ -407,7 +407,7 @@ class Evaluations:
     kept in ``run["evals"]`` (``eval/return``, with ``eval/min_return`` and ``eval/below_teacher``:
     :func:`run_utils.evaluation_metrics`), and with ``eval.other_actor`` of every other actor the
     run has (``eval/return_<online|target|average>`` and so on: same seeds, an env each); every
-    ``eval.video_every_frames`` frames a video of one episode.
+    ``eval.video_every_frames`` frames a video of one episode of the evaluated actor.
 
     Args:
         actors: the live weights of each actor by name (:func:`run_utils.actor_weights`; ``None``:
@@ -433,8 +433,10 @@ class Evaluations:
                 weights = None if name == "online" else self.actors[name]
                 returns = actor_returns(env, self.actor, weights, cfg.eval.episodes, cfg.env.max_episode_steps)
                 metrics.update(evaluation_metrics(returns, self.teacher_return, f"_{name}"))
-        if crossings(cfg.eval.video_every_frames, 0, before, frames):
-            self.video(self.envs["video"], self.actor, frames)
+        if crossings(cfg.eval.video_every_frames, 0, before, frames):  # of the evaluated actor
+            weights = None if cfg.eval.actor == "online" else self.actors[str(cfg.eval.actor)]
+            with weights_in(self.actor, weights):
+                self.video(self.envs["video"], self.actor, frames)
         return metrics
 
 

@@ -161,7 +161,7 @@ def actor_weights(loss, average: ActorAverage | None = None) -> dict:
     actor the loss trains), ``"target"`` (a TD3 loss's target actor) and ``"average"`` (``average``'s,
     :class:`ActorAverage`). Live tensors: they change as the run trains."""
     weights = {"online": loss.actor_network_params}
-    if hasattr(loss, "target_actor_network_params"):
+    if getattr(loss, "delay_actor", False):  # TD3's; SACLoss answers target_actor_network_params too
         weights["target"] = loss.target_actor_network_params
     if average is not None:
         weights["average"] = average.weights
@@ -171,19 +171,23 @@ def actor_weights(loss, average: ActorAverage | None = None) -> dict:
 def actor_returns(env, actor, weights, episodes: int, max_steps: int) -> list[float]:
     """Dense returns of deterministic episodes of ``actor``, run with ``weights`` in place of its own
     (one entry of :func:`actor_weights`; ``None``: its own). Its own come back after the episodes."""
-    swap = contextlib.nullcontext()
-    if weights is not None:
-        # preserve_module_state=False: the swapped-in tensors stay the ones the run saves and updates
-        swap = weights.to_module(actor, preserve_module_state=False)
-    with swap:
+    with weights_in(actor, weights):
         return [e["dense_return"] for e in evaluate_episodes(env, actor, episodes, max_steps)]
+
+
+def weights_in(actor, weights):
+    """A context in which ``actor`` runs with ``weights`` (``None``: its own), its own back after it."""
+    if weights is None:
+        return contextlib.nullcontext()
+    # preserve_module_state=False: the swapped-in tensors stay the ones the run saves and updates
+    return weights.to_module(actor, preserve_module_state=False)
 
 
 def evaluation_metrics(returns: list[float], teacher_return: float, suffix: str = "") -> dict:
     """An evaluation's logged figures from its episodes' returns: ``eval/return`` (their mean),
     ``eval/min_return`` (the lowest episode's return) and ``eval/below_teacher``, the share of its
     episodes below the teacher's return (one fallen episode in 10 reads 0.1, a collapse 1.0); each
-    tag with ``suffix`` (``"_online"`` or ``"_target"``: the other actor's).
+    tag with ``suffix`` (``"_online"``, ``"_target"``, ``"_average"``: another actor's).
 
     Examples:
         >>> evaluation_metrics([300.0, 100.0, 350.0, 250.0], teacher_return=200.0)
@@ -215,15 +219,16 @@ class ActorAverage:
 
     After each collector batch, :meth:`update` moves the average toward the actor's weights by
     ``1 - exp(-n / memory_frames)`` for the batch's ``n`` frames, so the actor's weights of ``k``
-    frames ago weigh in proportion to ``exp(-k / memory_frames)``. While fewer than about
-    ``memory_frames`` frames have passed since ``start`` (the frame learning starts), the step is
+    frames ago weigh in proportion to ``exp(-k / memory_frames)``. The batch that reaches ``start``
+    (the frame learning starts; its own learning block runs in that batch) sets the average to the
+    actor's weights; while fewer than about ``memory_frames`` frames have passed since, the step is
     ``n / (frames - start)`` instead, the uniform average of the weights since ``start``: the
     initial weights do not linger. A checkpoint component (``state_dict``).
 
     Args:
         weights: the actor's live weights (``loss.actor_network_params``).
         memory_frames (int): the average's memory, in frames (``eval.average_frames``).
-        start (int): the first frame averaged.
+        start (int): the frame learning starts.
 
     Examples:
         >>> import torch
@@ -231,7 +236,7 @@ class ActorAverage:
         >>> live = TensorDict({"w": torch.tensor([0.0])})
         >>> average = ActorAverage(live, memory_frames=1000, start=0)
         >>> live["w"] += 4.0
-        >>> average.update(before=0, frames=100)  # the first step copies: the uniform average of one
+        >>> average.update(before=0, frames=100)  # the uniform average of one: the actor's weights
         >>> live["w"] += 4.0
         >>> average.update(before=100, frames=200)  # the uniform average of (4, 8), as 1/2 > 1 - exp(-0.1)
         >>> average.weights["w"].tolist()
@@ -244,10 +249,13 @@ class ActorAverage:
         self.memory_frames, self.start = memory_frames, start
 
     def update(self, *, before: int, frames: int) -> None:
-        """Moves the average toward the actor's weights for the frames in ``(before, frames]`` past ``start``."""
-        if frames <= self.start:
+        """Moves the average toward the actor's weights for the frames in ``(before, frames]``."""
+        if frames < self.start:
             return
-        n = frames - max(before, self.start)
+        if before < self.start:  # the batch that reaches start: the average begins at the actor
+            self.weights.update_(self.live.data)
+            return
+        n = frames - before
         step = max(-math.expm1(-n / self.memory_frames), n / (frames - self.start))
         self.weights.lerp_(self.live.data, step)
 

@@ -635,9 +635,10 @@ def test_best_policy_writes_nothing_before_a_training_episode_ends(tmp_path):
 
 
 def test_actor_average_is_uniform_then_exponential_in_frames_and_resumes(tmp_path):
-    """Hand-computed: nothing before start; then the uniform average of the weights since start
-    while n / (frames - start) is the larger step; then 1 - exp(-n / memory_frames). The state
-    survives a checkpoint."""
+    """Hand-computed: nothing before start; the batch that reaches start (whose learning block has
+    run) copies the actor; then the uniform average of the weights since start while
+    n / (frames - start) is the larger step; then 1 - exp(-n / memory_frames). The state survives a
+    checkpoint."""
     import math
 
     import torch
@@ -650,21 +651,37 @@ def test_actor_average_is_uniform_then_exponential_in_frames_and_resumes(tmp_pat
     steps = [
         # (the actor's weight, before, frames, the average after)
         (1.0, 0, 500, 0.0),  # before start: unchanged
-        (2.0, 500, 1500, 2.0),  # 500 frames since start: step 1 (the uniform average of one)
-        (4.0, 1500, 2500, (500 * 2.0 + 1000 * 4.0) / 1500),  # step 1000/1500 > 1 - exp(-0.5)
+        (2.0, 500, 1000, 2.0),  # the batch that reaches start: the actor's weights
+        (3.0, 1000, 1500, 3.0),  # 500 frames since start: step 500/500 (the uniform average of one)
+        (5.0, 1500, 2500, (500 * 3.0 + 1000 * 5.0) / 1500),  # step 1000/1500 > 1 - exp(-0.5)
         (10.0, 2500, 6500, None),  # step 1 - exp(-2) = 0.865 > 4000/5500 = 0.727
     ]
     for weight, before, frames, expected in steps:
         live["layer", "w"].fill_(weight)
         average.update(before=before, frames=frames)
         if expected is None:
-            expected = 10 / 3 - math.expm1(-2.0) * (10.0 - 10 / 3)
+            expected = 13 / 3 - math.expm1(-2.0) * (10.0 - 13 / 3)
         assert average.weights["layer", "w"].tolist() == pytest.approx([expected] * 2), frames
     assert live["layer", "w"].tolist() == [10.0, 10.0]  # the actor's own weights are untouched
     Checkpoint(actor_average=average).save(tmp_path / "ckpt")
     resumed = ActorAverage(TensorDict({"layer": {"w": torch.ones(2)}}), memory_frames=2000, start=1000)
     Checkpoint(actor_average=resumed).load(tmp_path / "ckpt")
     assert torch.equal(resumed.weights["layer", "w"], average.weights["layer", "w"])
+
+
+def test_a_sac_run_has_the_online_and_averaged_actors_and_no_target():
+    """SACLoss answers target_actor_network_params with the actor's own weights: not a target actor."""
+    from run_utils import actor_names, actor_weights, make_actor_average
+    from utils import make_agent, make_discriminator, make_losses
+
+    from torchrl_sail import make_sail_env
+
+    cfg = make("algo=sail_sac", "eval.average_frames=5000", "eval.other_actor=true")
+    env = make_sail_env("Pendulum-v1", max_episode_steps=20)
+    actor, critic, _ = make_agent(cfg, env)
+    loss = make_losses(cfg, actor, critic, make_discriminator(cfg, env), env.action_spec)[0]
+    actors = actor_weights(loss, make_actor_average(cfg, loss))
+    assert list(actors) == actor_names(cfg) == ["online", "average"]
 
 
 def test_best_policy_keeps_the_averaged_actor_and_loads_it(tmp_path):

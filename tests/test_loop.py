@@ -3,6 +3,7 @@ each on its own, with stand-ins for the buffers, losses and envs they drive."""
 
 from __future__ import annotations
 
+import contextlib
 import sys
 from pathlib import Path
 from types import SimpleNamespace
@@ -361,6 +362,8 @@ def test_evaluations_at_their_cadence_with_the_other_actors_and_videos(monkeypat
     )
     envs = {"evaluated": "e", "others": {"online": "o", "average": "a"}, "video": "v"}
     actors = {"online": "own", "target": "tgt", "average": "avg"}
+    swapped = []  # the weights each video ran with: the evaluated actor's
+    monkeypatch.setattr(loop, "weights_in", lambda actor, weights: swapped.append(weights) or contextlib.nullcontext())
     evaluations = loop.Evaluations(cfg, None, actors, {}, 15.0, envs, lambda env, actor, frames: videos.append(frames))
     assert evaluations(0, 500) == {}
     assert evaluations(500, 1000) == {
@@ -373,7 +376,8 @@ def test_evaluations_at_their_cadence_with_the_other_actors_and_videos(monkeypat
         "eval/below_teacher_average": 0.0,
     }
     evaluations(1500, 2000)
-    assert evaluated == [("e", 1000), ("e", 2000)] and other == [("o", None), ("a", "avg")] * 2 and videos == [2000]
+    assert evaluated == [("e", 1000), ("e", 2000)] and other == [("o", None), ("a", "avg")] * 2
+    assert videos == [2000] and swapped == ["tgt"]
 
 
 def test_eval_envs_one_per_other_actor_the_run_has():

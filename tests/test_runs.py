@@ -174,6 +174,21 @@ def test_restore_refuses_a_config_change_the_checkpoint_was_not_trained_with(tmp
     assert torch.equal(layer.weight, before)  # refused before the checkpoint was loaded
 
 
+def test_restore_takes_evaluation_changes_but_not_the_averaged_actors_memory(tmp_path):
+    """eval.* may change on resume, but not eval.average_frames: the checkpoint holds that average."""
+    trained = {**TRAINED, "eval": {"episodes": 5, "average_frames": 10_000}}
+    saved_run(tmp_path / "run", weight=0.5, config=trained)
+    run, _, _, checkpoint = fresh()
+    config = {**trained, "resume": True, "eval": {"episodes": 10, "average_frames": 0}}
+    with pytest.raises(ValueError, match="written with eval.average_frames=10000, this run has eval.average_frames=0"):
+        restore_run(checkpoint, tmp_path / "run", run, config=config)
+    run, _, _, checkpoint = fresh()
+    restore_run(
+        checkpoint, tmp_path / "run", run, config={**config, "eval": {"episodes": 10, "average_frames": 10_000}}
+    )
+    assert run["resumes"] == [{"frames": 2000, "changes": {"eval.episodes": [5, 10]}}]
+
+
 def test_restore_records_the_allowed_changes_against_the_checkpoints_config(tmp_path, capsys):
     run_dir = tmp_path / "run"
     saved_run(run_dir, config=TRAINED)

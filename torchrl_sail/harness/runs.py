@@ -54,7 +54,8 @@ _IDENTITY_KEYS = {"env": "env", "algo": "algo", "seed": "seed", "teacher": "teac
 
 #: The config keys a resumed run may change (each with the keys below it): its length,
 #: logging, evaluation, checkpoints, hardware and learning rates (a diverged run goes on with a
-#: lower one). Any other change would make one curve of two configs, or not fit the checkpoint.
+#: lower one). Any other change would make one curve of two configs, or not fit the checkpoint:
+#: ``eval.average_frames`` (the averaged actor the checkpoint holds, and its memory) among them.
 RESUME_MAY_CHANGE = (
     "resume",
     "collector.total_frames",
@@ -62,7 +63,14 @@ RESUME_MAY_CHANGE = (
     "collector.backend",
     "collector.backend_options",
     "logger",
-    "eval",
+    "eval.every_frames",
+    "eval.episodes",
+    "eval.actor",
+    "eval.other_actor",
+    "eval.best_policy",
+    "eval.video_every_frames",
+    "eval.video_format",
+    "eval.video_size",
     "checkpoint",
     "threads",
     "flush_denormal",
