@@ -19,7 +19,15 @@ import contextlib
 
 import torch
 from omegaconf import DictConfig
-from run_utils import actor_names, actor_returns, crossings, evaluation_metrics, record_evaluation, weights_in
+from run_utils import (
+    actor_names,
+    actor_returns,
+    crossings,
+    evaluation_metrics,
+    learning_start,
+    record_evaluation,
+    weights_in,
+)
 from torchrl import timeit
 from utils import (
     ActorDrift,
@@ -148,7 +156,7 @@ def make_cadence(cfg: DictConfig, *, every_frames: int, steps: int):
     """``optim.cadence``: ``frames`` (every ``every_frames`` frames, ``steps`` steps) or ``episodes``
     (after each episode, the same steps per frame); learning starts at ``optim.start_frames``
     (``None``: when the random warm-up ends)."""
-    start = cfg.optim.start_frames if cfg.optim.start_frames is not None else cfg.collector.init_random_frames
+    start = learning_start(cfg)
     if cfg.optim.cadence == "episodes":
         return EpisodeCadence(steps_per_frame=steps / every_frames, start=start)
     return FrameCadence(every_frames=every_frames, steps=steps, start=start)

@@ -147,13 +147,17 @@ def actor_names(cfg: DictConfig) -> list[str]:
     ]
 
 
+def learning_start(cfg: DictConfig) -> int:
+    """The frame learning starts: ``optim.start_frames``, else the end of the random warm-up."""
+    return cfg.optim.start_frames if cfg.optim.start_frames is not None else cfg.collector.init_random_frames
+
+
 def make_actor_average(cfg: DictConfig, loss) -> ActorAverage | None:
     """``eval.average_frames``' :class:`ActorAverage` of ``loss``'s actor, from the frame learning
     starts (``optim.start_frames``, else the end of the random warm-up); ``None`` when it is 0."""
     if not cfg.eval.average_frames:
         return None
-    start = cfg.optim.start_frames if cfg.optim.start_frames is not None else cfg.collector.init_random_frames
-    return ActorAverage(loss.actor_network_params, memory_frames=cfg.eval.average_frames, start=start)
+    return ActorAverage(loss.actor_network_params, memory_frames=cfg.eval.average_frames, start=learning_start(cfg))
 
 
 def actor_weights(loss, average: ActorAverage | None = None) -> dict:
