@@ -22,13 +22,16 @@ name (``shipped`` for the env's default teacher). Writes to ``--out``:
     excluded), those below it (``torchrl_sail.harness.fall_share`` of the eval curve; None if it
     never passed);
   - best policy: ``summary.json``'s ``best_policy.eval_return``, the evaluation of the policy it
-    kept by its own training returns (absent in runs that did not evaluate one, older runs).
+    kept by its own training returns (absent in runs that did not evaluate one, older runs);
+  - best evaluated policy: ``summary.json``'s ``best_evaluated_policy.eval_return``, the policy at its
+    best periodic evaluation, evaluated on other episodes (absent in older runs).
 
   Per group, over seeds: the headline mean (the first column after env, teacher and method:
   "last-5 mean", ``last5_mean`` in the CSV), its sample std (ddof=1) and 95% Student-t CI
   of the mean (both n/a for one seed), the best policy's mean and std over the seeds that have
   it ("best policy" beside the headline, ``best_policy_mean``, ``best_policy_std`` and
   ``best_policy_n`` in the CSV; ``-`` if none has it, "k/n seeds" and a note if only some do),
+  the same of the best evaluated policy (``best_evaluated_mean``, ``_std`` and ``_n``, in the CSV only),
   the mean final and mean best evaluation, headline mean / teacher return (the median of the
   seeds' teacher returns), the frames to pass the teacher (median over the seeds that passed,
   with "k/n seeds passed"), and the fall share pooled over the seeds that passed: their falls
@@ -258,6 +261,13 @@ class Run:
         value = ((self.summary or {}).get("best_policy") or {}).get("eval_return")
         return None if value is None else float(value)
 
+    @property
+    def best_evaluated_return(self) -> float | None:
+        """``summary.json``'s ``best_evaluated_policy.eval_return``: the evaluation of the policy at its
+        best periodic evaluation, on other episodes; None for runs without one (older runs)."""
+        value = ((self.summary or {}).get("best_evaluated_policy") or {}).get("eval_return")
+        return None if value is None else float(value)
+
     def passed_teacher_at(self) -> int | None:
         """Frames at the first eval above the teacher's return (the summary's, else from the curve)."""
         if self.summary and "passed_teacher_at_frame" in self.summary:
@@ -304,6 +314,7 @@ class Group:
         passed = [frames for frames in passed if frames is not None]
         teacher = self.teacher_return
         best_policy = [run.best_policy_return for run in self.runs if run.best_policy_return is not None]
+        best_evaluated = [run.best_evaluated_return for run in self.runs if run.best_evaluated_return is not None]
         # pooled, not a mean of per-seed shares: a seed that passed late has few evaluations to weigh
         shares = [share for share in (run.fall_share for run in self.runs) if share is not None]
         falls = sum(share["falls"] for share in shares) if shares else None
@@ -319,6 +330,9 @@ class Group:
             "best_policy_mean": statistics.fmean(best_policy) if best_policy else None,
             "best_policy_std": statistics.stdev(best_policy) if len(best_policy) > 1 else None,
             "best_policy_n": len(best_policy),
+            "best_evaluated_mean": statistics.fmean(best_evaluated) if best_evaluated else None,
+            "best_evaluated_std": statistics.stdev(best_evaluated) if len(best_evaluated) > 1 else None,
+            "best_evaluated_n": len(best_evaluated),
             "final_mean": statistics.fmean(run.final_return for run in self.runs),
             "best_mean": statistics.fmean(run.best_return for run in self.runs),
             "vs_teacher": mean / teacher if teacher else None,
@@ -675,6 +689,9 @@ CSV_COLUMNS = (
     "best_policy_mean",
     "best_policy_std",
     "best_policy_n",
+    "best_evaluated_mean",
+    "best_evaluated_std",
+    "best_evaluated_n",
     "n_seeds",
     "seeds",
     "final_mean",
@@ -793,6 +810,13 @@ def run_details(run: Run) -> str:
             f"- best policy (kept at {best.get('frames')} frames, training-return mean "
             f"{fmt(best.get('train_return_mean'), 0)}): eval {run.best_policy_return:.0f} over "
             f"{best.get('episodes')} episodes"
+        )
+    if run.best_evaluated_return is not None:
+        best = summary["best_evaluated_policy"]
+        lines.append(
+            f"- best evaluated policy (kept at {best.get('frames')} frames, evaluated "
+            f"{fmt(best.get('periodic_eval_return'), 0)} then): eval {run.best_evaluated_return:.0f} over "
+            f"{best.get('episodes')} other episodes"
         )
     speed = summary.get("frames_per_second")
     memory = summary.get("peak_memory_mb")

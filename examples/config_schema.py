@@ -49,8 +49,8 @@ Precision = Choice("Precision", {name: name for name in ("fp32", "bf16")})
 # an actor of a run: online (the one the TD3 or SAC step trains), target (a TD3 learner's target
 # actor, the Polyak average of its recent weights) or average (eval.average_frames' longer average)
 EvaluatedActor = Choice("EvaluatedActor", {name: name for name in ("online", "target", "average")})
-# a run's last checkpoint or the best policy it kept (eval.best_policy)
-EvaluatedPolicy = Choice("EvaluatedPolicy", {name: name for name in ("last", "best")})
+# a run's last checkpoint, the best policy it kept (eval.best_policy) or the policy at its best evaluation
+EvaluatedPolicy = Choice("EvaluatedPolicy", {name: name for name in ("last", "best", "best_evaluated")})
 LossFunction = Choice("LossFunction", {name: name for name in ("l1", "l2", "smooth_l1")})
 Activation = Choice("Activation", {name: name for name in ("relu", "tanh", "elu")})
 DiscriminatorInit = Choice("DiscriminatorInit", {name: name for name in ("xavier", "orthogonal", "torch")})
@@ -365,8 +365,10 @@ class TeacherConfig:
 class BestPolicyConfig:
     """The policy a run keeps as its best, by the SAIL authors' rule (``train_sail.py``'s callback):
     every ``every_frames`` frames, the mean return of the last ``window`` training episodes; a new
-    high keeps the policy (``best_policy.pt``). At the end, ``episodes`` deterministic episodes of it
-    (on the run's seed + 20000, as ``examples/evaluate.py``) go into ``summary.json``."""
+    high keeps the policy (``best_policy.pt``). Beside it, a run keeps the policy at its best periodic
+    evaluation (``best_evaluated_policy.pt``, Stable-Baselines3's ``EvalCallback`` rule). At the end,
+    ``episodes`` deterministic episodes of each (on the run's seed + 20000, as ``examples/evaluate.py``)
+    go into ``summary.json``."""
 
     every_frames: int = 500
     window: int = 100
@@ -429,7 +431,8 @@ class EvaluateConfig:
 
     run_dir: str = MISSING  # a run folder written by a training script (config.yaml + checkpoint/)
     episodes: int = 10  # deterministic episodes, each from a fresh reset of one seeded env
-    # last: the run's last checkpoint | best: the policy it kept as its best (best_policy.pt)
+    # last: the run's last checkpoint | best: the policy it kept as its best by the SAIL authors' rule
+    # (best_policy.pt) | best_evaluated: the policy at its best periodic evaluation (best_evaluated_policy.pt)
     policy: EvaluatedPolicy = EvaluatedPolicy.last
     # online: the trained actor; target: its Polyak average (TD3 learners); average: the run's
     # eval.average_frames average; null: the run's eval.actor

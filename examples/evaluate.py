@@ -2,6 +2,7 @@
 
     python examples/evaluate.py run_dir=outputs/Hopper-v4/sail/seed0
     python examples/evaluate.py run_dir=outputs/Hopper-v4/sail/seed0 policy=best episodes=50
+    python examples/evaluate.py run_dir=outputs/Hopper-v4/sail/seed0 policy=best_evaluated episodes=50
     MUJOCO_GL=egl python examples/evaluate.py run_dir=outputs/Hopper-v4/sail/seed0 video=true episodes=20
 
 The run's ``config.yaml`` rebuilds its env and actor (any method: ``sail_td3.py``, ``gail.py``,
@@ -10,7 +11,8 @@ fresh seed (the run's seed + 20000 unless ``seed`` is given). The dense return (
 reports), the delayed reward r_e (what the learner saw) and the episode length are printed and
 written with their mean, std, min and max to ``<run_dir>/evaluation.json``. ``policy=best``
 evaluates the policy the run kept as its best by its own training returns (``best_policy.pt``,
-the SAIL authors' rule) instead of its last checkpoint. The actor is the one the run's own
+the SAIL authors' rule) instead of its last checkpoint, ``policy=best_evaluated`` the policy at its
+best periodic evaluation (``best_evaluated_policy.pt``). The actor is the one the run's own
 evaluations use (its ``eval.actor``) unless ``actor=online``, ``actor=target`` (a TD3 learner's
 target actor, the Polyak average of its recent weights) or ``actor=average`` (the longer average a
 run with ``eval.average_frames`` keeps) says otherwise. ``video=true`` replays the
@@ -36,16 +38,20 @@ import hydra
 import torch
 from config_schema import SAILConfig, register_config_schema
 from omegaconf import OmegaConf
-from run_utils import evaluate_episodes, load_best_policy, make_actor_average, seed_everything
+from run_utils import evaluate_episodes, load_kept_policy, make_actor_average, seed_everything
 from torchrl.checkpoint import Checkpoint
 from utils import copy_observation_norm, make_agent, make_discriminator, make_env, make_losses, make_ppo_models
 from video import make_render_env, record_episode, video_fps, write_video
 
 from torchrl_sail import observation_normalizer
 from torchrl_sail._compat import fast_tensor_outputs
-from torchrl_sail.harness import BEST_POLICY, CONFIG, checkpoint_dir, write_atomic
+from torchrl_sail.harness import BEST_EVALUATED_POLICY, BEST_POLICY, CONFIG, checkpoint_dir, write_atomic
 
 register_config_schema()
+
+# policy=: the file of each policy a run keeps beside its checkpoint, and how the report names it
+KEPT_POLICIES = {"best": BEST_POLICY, "best_evaluated": BEST_EVALUATED_POLICY}
+POLICY_LABELS = {"last": "checkpoint", "best": "best policy", "best_evaluated": "best evaluated policy"}
 
 
 def load_run(run_dir: Path):
@@ -70,14 +76,14 @@ def load_run(run_dir: Path):
     return OmegaConf.merge(defaults, OmegaConf.load(config)), run
 
 
-def load_actor(cfg, env, checkpoint: Path, which: str = "online", best_policy: Path | None = None):
+def load_actor(cfg, env, checkpoint: Path, which: str = "online", kept_policy: Path | None = None):
     """The run's deterministic actor with the checkpoint's weights (TD3/SAC keep them in the loss).
 
     A PPO actor reads normalised observations: ``env``'s normaliser gets the training statistics the
     checkpoint holds, frozen. ``which``: the actor by ``eval.actor``'s name, ``online`` (the actor
     itself), ``target`` (a TD3 learner's target actor, the Polyak average of its recent weights) or
-    ``average`` (the run's ``eval.average_frames`` average). ``best_policy``: a TD3/SAC run's
-    ``best_policy.pt``, whose weights replace the checkpoint's.
+    ``average`` (the run's ``eval.average_frames`` average). ``kept_policy``: a TD3/SAC run's
+    ``best_policy.pt`` or ``best_evaluated_policy.pt``, whose weights replace the checkpoint's.
     """
     if cfg.algo.learner == "ppo":
         actor, _ = make_ppo_models(cfg, env)
@@ -93,8 +99,8 @@ def load_actor(cfg, env, checkpoint: Path, which: str = "online", best_policy: P
         actor, critic, _ = make_agent(cfg, env)
         loss = make_losses(cfg, actor, critic, make_discriminator(cfg, env), env.action_spec)[0]
         Checkpoint(loss=loss).load(checkpoint, components=["loss"])  # the actor's parameters live in the loss
-        if best_policy is not None:
-            load_best_policy(best_policy, loss, which)
+        if kept_policy is not None:
+            load_kept_policy(kept_policy, loss, which)
         elif which == "target":
             loss.actor_network_params.data.copy_(loss.target_actor_network_params.data)
         elif which == "average":
@@ -128,15 +134,16 @@ def episode_transitions(rollout, absorbing_state: bool):
 
 def check_args(args, cfg) -> None:
     """Everything that can fail is checked before the first episode (``cfg``: the run's config)."""
-    if args.policy == "best" and cfg.algo.learner not in ("td3", "sac"):
+    if args.policy != "last" and cfg.algo.learner not in ("td3", "sac"):
         raise ValueError(
-            f"policy=best: run_dir={args.run_dir} is algo={cfg.algo.name}, a {cfg.algo.learner} learner; only "
-            f"the off-policy runs of examples/sail_td3.py keep a best policy"
+            f"policy={args.policy}: run_dir={args.run_dir} is algo={cfg.algo.name}, a {cfg.algo.learner} learner; "
+            f"only the off-policy runs of examples/sail_td3.py keep a best policy"
         )
-    if args.policy == "best" and not (Path(args.run_dir) / BEST_POLICY).exists():
+    kept = KEPT_POLICIES.get(str(args.policy))
+    if kept is not None and not (Path(args.run_dir) / kept).exists():
         raise FileNotFoundError(
-            f"policy=best: run_dir={args.run_dir} has no {BEST_POLICY} (written at the run's checkpoints once a "
-            f"training episode has ended; runs of versions before it have none): use policy=last"
+            f"policy={args.policy}: run_dir={args.run_dir} has no {kept} (written at the run's checkpoints once "
+            f"it keeps one; runs of versions before it have none): use policy=last"
         )
     if args.actor == "target" and cfg.algo.learner != "td3":
         raise ValueError(
@@ -190,8 +197,9 @@ def main(args):  # noqa: F821
     check_args(args, cfg)
     seed_everything(seed)
     env = make_env(cfg, seed)
-    best_policy = run_dir / BEST_POLICY if args.policy == "best" else None
-    actor = load_actor(cfg, env, checkpoint_dir(run_dir), str(args.actor), best_policy=best_policy)
+    kept = KEPT_POLICIES.get(str(args.policy))
+    kept_policy = run_dir / kept if kept is not None else None
+    actor = load_actor(cfg, env, checkpoint_dir(run_dir), str(args.actor), kept_policy=kept_policy)
     episodes = evaluate_episodes(env, actor, args.episodes, cfg.env.max_episode_steps, keep_rollouts=bool(args.export))
 
     result = {
@@ -201,8 +209,8 @@ def main(args):  # noqa: F821
         "run_seed": cfg.seed,
         "checkpoint_frames": run["frames"],
         "policy": str(args.policy),
-        # the frame the evaluated weights are from: the best policy's, else the checkpoint's
-        "policy_frames": torch.load(best_policy, weights_only=True)["frames"] if best_policy else run["frames"],
+        # the frame the evaluated weights are from: the kept policy's, else the checkpoint's
+        "policy_frames": torch.load(kept_policy, weights_only=True)["frames"] if kept_policy else run["frames"],
         "actor": str(args.actor),
         "seed": seed,
         "episodes": args.episodes,
@@ -236,7 +244,7 @@ def main(args):  # noqa: F821
     write_atomic(out, json.dumps(result, indent=2))
 
     print(
-        f"{cfg.algo.name} on {cfg.env.name} (seed {cfg.seed}), {'best policy' if best_policy else 'checkpoint'} "
+        f"{cfg.algo.name} on {cfg.env.name} (seed {cfg.seed}), {POLICY_LABELS[str(args.policy)]} "
         f"at {result['policy_frames']} frames, "
         f"{args.episodes} deterministic episodes (seed {seed}) of its {args.actor} actor:"
     )

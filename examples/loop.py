@@ -415,7 +415,8 @@ class Evaluations:
     kept in ``run["evals"]`` (``eval/return``, with ``eval/min_return`` and ``eval/below_teacher``:
     :func:`run_utils.evaluation_metrics`), and with ``eval.other_actor`` of every other actor the
     run has (``eval/return_<online|target|average>`` and so on: same seeds, an env each); every
-    ``eval.video_every_frames`` frames a video of one episode of the evaluated actor.
+    ``eval.video_every_frames`` frames a video of one episode of the evaluated actor. Each
+    evaluated actor's ``eval/return`` goes to ``best_evaluated`` (:class:`run_utils.BestEvaluatedPolicy`).
 
     Args:
         actors: the live weights of each actor by name (:func:`run_utils.actor_weights`; ``None``:
@@ -423,11 +424,14 @@ class Evaluations:
         envs: ``{"evaluated": env, "others": {actor name: env}}`` (:func:`make_eval_envs`), and
             ``"video"``: a render env with ``video``.
         video: ``video(env, actor, frames)`` records and logs one episode (``None``: no videos).
+        best_evaluated: keeps the actors at the best evaluation (``None``: nothing kept).
     """
 
-    def __init__(self, cfg: DictConfig, actor, actors, run: dict, teacher_return: float, envs: dict, video) -> None:
+    def __init__(
+        self, cfg: DictConfig, actor, actors, run: dict, teacher_return: float, envs: dict, video, best_evaluated=None
+    ) -> None:
         self.cfg, self.actor, self.actors, self.run, self.teacher_return = cfg, actor, actors, run, teacher_return
-        self.envs, self.video = envs, video
+        self.envs, self.video, self.best_evaluated = envs, video, best_evaluated
 
     def __call__(self, before: int, frames: int) -> dict:
         cfg, metrics = self.cfg, {}
@@ -437,6 +441,8 @@ class Evaluations:
                     self.envs["evaluated"], self.actor, self.actors, cfg, self.run, frames, self.teacher_return
                 )
             )
+            if self.best_evaluated is not None:
+                self.best_evaluated.keep(metrics["eval/return"], frames)
             for name, env in self.envs["others"].items():
                 weights = None if name == "online" else self.actors[name]
                 returns = actor_returns(env, self.actor, weights, cfg.eval.episodes, cfg.env.max_episode_steps)
@@ -459,9 +465,12 @@ def make_eval_envs(cfg: DictConfig, make_env) -> dict:
     }
 
 
-def make_evaluations(cfg: DictConfig, envs: dict, actor, actors, run: dict, teacher_return: float, loggers, run_dir):
-    """The evaluations of ``cfg`` on ``envs`` (:func:`make_eval_envs`). With ``eval.video_every_frames``
-    the render env is built here, before training: a missing GL backend fails now."""
+def make_evaluations(
+    cfg: DictConfig, envs: dict, actor, actors, run: dict, teacher_return: float, loggers, run_dir, best_evaluated=None
+):
+    """The evaluations of ``cfg`` on ``envs`` (:func:`make_eval_envs`), keeping the best in
+    ``best_evaluated``. With ``eval.video_every_frames`` the render env is built here, before
+    training: a missing GL backend fails now."""
     video = None
     if cfg.eval.video_every_frames:
         envs = {**envs, "video": make_render_env(cfg, cfg.seed + 30_000, cfg.eval.video_size)}
@@ -469,4 +478,4 @@ def make_evaluations(cfg: DictConfig, envs: dict, actor, actors, run: dict, teac
         def video(env, actor, frames):
             log_video(loggers, env, actor, cfg, run_dir, frames)
 
-    return Evaluations(cfg, actor, actors, run, teacher_return, envs, video)
+    return Evaluations(cfg, actor, actors, run, teacher_return, envs, video, best_evaluated)

@@ -270,16 +270,72 @@ class ActorAverage:
         self.weights.update_(TensorDict(state["weights"]).unflatten_keys("."))
 
 
-class BestPolicy:
+class KeptPolicy:
+    """Copies of the weights of every actor a run has (the actor's, a TD3 loss's target actor's, an
+    averaged actor's), taken whenever a score of the run reaches a strictly higher value: what
+    :class:`BestPolicy` and :class:`BestEvaluatedPolicy` keep. The copy lives in memory and is written
+    to its file by :meth:`write`, at the run's checkpoints, so the file always matches the checkpoint
+    a resume continues from. A checkpoint component (``state_dict``).
+
+    Args:
+        actors: the live weights of each actor by name (:func:`actor_weights`).
+    """
+
+    score_name = "score"  # the score's name in record(): what the rule compares
+
+    def __init__(self, actors: dict) -> None:
+        self.live = {ACTOR_KEYS[name]: weights for name, weights in actors.items()}
+        self.kept = {name: params.data.clone() for name, params in self.live.items()}
+        self.score: float | None = None  # the best score so far
+        self.frames: int | None = None  # the frame it was reached at
+
+    def keep(self, score: float, frames: int) -> bool:
+        """Keeps the actors' weights of now if ``score`` is a new high. Returns whether it did."""
+        if self.score is not None and score <= self.score:
+            return False
+        self.score, self.frames = score, frames
+        for name, params in self.live.items():
+            self.kept[name].update_(params.data)
+        return True
+
+    def params(self, which: str):
+        """The kept weights of the actor ``which`` names (``"online"``, ``"target"``, ``"average"``),
+        keyed as the loss keeps them: ``with kept.params(which).to_module(actor): ...`` runs the kept policy."""
+        return self.kept[ACTOR_KEYS[str(which)]]
+
+    def record(self) -> dict:
+        return {"frames": self.frames, self.score_name: self.score}
+
+    def write(self, path: Path) -> None:
+        """The kept weights (each as ``{name: tensor}``) and :meth:`record`, written atomically to
+        ``path``; nothing while no policy is kept."""
+        if self.frames is None:
+            return
+        state = {**self.record(), **{name: kept.flatten_keys(".").to_dict() for name, kept in self.kept.items()}}
+        tmp = path.with_name(f".{path.name}.tmp")
+        torch.save(state, tmp)
+        tmp.replace(path)
+
+    def state_dict(self) -> dict:
+        return {
+            "score": self.score,
+            "frames": self.frames,
+            **{name: kept.flatten_keys(".").to_dict() for name, kept in self.kept.items()},
+        }
+
+    def load_state_dict(self, state: dict) -> None:
+        self.score, self.frames = state["score"], state["frames"]
+        for name, kept in self.kept.items():
+            kept.update_(TensorDict(state[name]).unflatten_keys("."))
+
+
+class BestPolicy(KeptPolicy):
     """The policy a run keeps as its best, chosen only from its own training returns: the SAIL
-    authors' rule (their ``train_sail.py`` callback saves ``best_model.pkl``).
+    authors' rule (their ``train_sail.py`` callback saves ``best_model.pkl``), ``best_policy.pt``.
 
     Every ``every_frames`` frames, the mean return of the last ``window`` finished training
     episodes is compared with the best so far; a strictly higher mean keeps a copy of the weights
-    of every actor the run has (the actor's, a TD3 loss's target actor's, an averaged actor's). The
-    copy lives in memory and is written
-    to ``best_policy.pt`` by :meth:`write`, at the run's checkpoints, so the file always matches
-    the checkpoint a resume continues from. A checkpoint component (``state_dict``).
+    of every actor the run has (:class:`KeptPolicy`).
 
     Args:
         actors: the live weights of each actor by name (:func:`actor_weights`).
@@ -296,17 +352,16 @@ class BestPolicy:
         >>> actor["w"] += 1.0
         >>> best.observe(torch.tensor([5.0]), before=500, frames=1000)  # mean of (20, 5) 12.5: not kept
         False
-        >>> best.frames, best.mean, best.kept["actor"]["w"].tolist()
-        (500, 15.0, [0.0, 0.0])
+        >>> best.record(), best.kept["actor"]["w"].tolist()
+        ({'frames': 500, 'train_return_mean': 15.0, 'window': 2}, [0.0, 0.0])
     """
 
+    score_name = "train_return_mean"
+
     def __init__(self, actors: dict, *, every_frames: int, window: int) -> None:
-        self.live = {ACTOR_KEYS[name]: weights for name, weights in actors.items()}
-        self.kept = {name: params.data.clone() for name, params in self.live.items()}
+        super().__init__(actors)
         self.every_frames, self.window = every_frames, window
         self.returns: list[float] = []
-        self.mean: float | None = None  # the best window mean so far
-        self.frames: int | None = None  # the frame it was reached at
 
     def observe(self, returns: torch.Tensor, *, before: int, frames: int) -> bool:
         """Adds the training episodes that ended in ``(before, frames]``; at a multiple of
@@ -315,72 +370,68 @@ class BestPolicy:
         self.returns = (self.returns + returns.tolist())[-self.window :]
         if not self.returns or not crossings(self.every_frames, 0, before, frames):
             return False
-        mean = sum(self.returns) / len(self.returns)
-        if self.mean is not None and mean <= self.mean:
-            return False
-        self.mean, self.frames = mean, frames
-        for name, params in self.live.items():
-            self.kept[name].update_(params.data)
-        return True
-
-    def params(self, which: str):
-        """The kept weights of the actor ``which`` names (``"online"``, ``"target"``, ``"average"``),
-        keyed as the loss keeps them: ``with best.params(which).to_module(actor): ...`` runs the kept policy."""
-        return self.kept[ACTOR_KEYS[str(which)]]
+        return self.keep(sum(self.returns) / len(self.returns), frames)
 
     def record(self) -> dict:
-        return {"frames": self.frames, "train_return_mean": self.mean, "window": self.window}
-
-    def write(self, path: Path) -> None:
-        """``best_policy.pt``: the kept weights (each as ``{name: tensor}``) and :meth:`record`,
-        written atomically; nothing while no policy is kept."""
-        if self.frames is None:
-            return
-        state = {**self.record(), **{name: kept.flatten_keys(".").to_dict() for name, kept in self.kept.items()}}
-        tmp = path.with_name(f".{path.name}.tmp")
-        torch.save(state, tmp)
-        tmp.replace(path)
+        return {**super().record(), "window": self.window}
 
     def state_dict(self) -> dict:
-        return {
-            "returns": list(self.returns),
-            "mean": self.mean,
-            "frames": self.frames,
-            **{name: kept.flatten_keys(".").to_dict() for name, kept in self.kept.items()},
-        }
+        return {**super().state_dict(), "returns": list(self.returns)}
 
     def load_state_dict(self, state: dict) -> None:
-        self.returns, self.mean, self.frames = list(state["returns"]), state["mean"], state["frames"]
-        for name, kept in self.kept.items():
-            kept.update_(TensorDict(state[name]).unflatten_keys("."))
+        super().load_state_dict(state)
+        self.returns = list(state["returns"])
 
 
-def evaluate_best_policy(cfg: DictConfig, best_policy: BestPolicy, actor, make_env) -> dict:
-    """``best_policy``'s record and, once a policy is kept, its ``eval.best_policy.episodes`` deterministic
+class BestEvaluatedPolicy(KeptPolicy):
+    """The policy at a run's best periodic evaluation: the weights of every actor at the highest
+    ``eval/return`` of the actor ``eval.actor`` names (Stable-Baselines3's ``EvalCallback`` keeps
+    its ``best_model`` so), ``best_evaluated_policy.pt``. The evaluations' episodes choose it; the
+    figure reported for it comes from other episodes (:func:`evaluate_kept_policy`), as a choice's
+    own episodes overstate it.
+
+    Examples:
+        >>> import torch
+        >>> from tensordict import TensorDict
+        >>> actor = TensorDict({"w": torch.zeros(2)})
+        >>> best = BestEvaluatedPolicy({"online": actor})
+        >>> best.keep(250.0, frames=10_000), best.keep(240.0, frames=20_000)
+        (True, False)
+        >>> best.record()
+        {'frames': 10000, 'periodic_eval_return': 250.0}
+    """
+
+    score_name = "periodic_eval_return"
+
+
+def evaluate_kept_policy(cfg: DictConfig, kept: KeptPolicy, actor, make_env) -> dict:
+    """``kept``'s record and, once a policy is kept, its ``eval.best_policy.episodes`` deterministic
     episodes (the actor ``eval.actor`` names) on the stream ``examples/evaluate.py`` uses by default
-    (seed + 20000): the summary's ``best_policy``."""
-    best, episodes = best_policy.record(), cfg.eval.best_policy.episodes
-    if best["frames"] is None or not episodes:
-        return best
-    with best_policy.params(cfg.eval.actor).to_module(actor, preserve_module_state=False):
-        best["eval_return"] = evaluate(make_env(cfg, cfg.seed + 20_000), actor, episodes, cfg.env.max_episode_steps)
-    return {**best, "actor": str(cfg.eval.actor), "episodes": episodes, "seed": cfg.seed + 20_000}
+    (seed + 20000), which no evaluation during training ran: the summary's ``best_policy`` and
+    ``best_evaluated_policy``."""
+    record, episodes = kept.record(), cfg.eval.best_policy.episodes
+    if record["frames"] is None or not episodes:
+        return record
+    with kept.params(cfg.eval.actor).to_module(actor, preserve_module_state=False):
+        record["eval_return"] = evaluate(make_env(cfg, cfg.seed + 20_000), actor, episodes, cfg.env.max_episode_steps)
+    return {**record, "actor": str(cfg.eval.actor), "episodes": episodes, "seed": cfg.seed + 20_000}
 
 
-def load_best_policy(path: Path, loss, which: str) -> dict:
-    """Puts the weights of ``best_policy.pt`` (:class:`BestPolicy`) for the actor ``which`` names into
-    ``loss``'s actor, and returns the file's record (frames, training-return mean, window)."""
+def load_kept_policy(path: Path, loss, which: str) -> dict:
+    """Puts the weights of a kept policy's file (``best_policy.pt``, ``best_evaluated_policy.pt``:
+    :class:`KeptPolicy`) for the actor ``which`` names into ``loss``'s actor, and returns the file's
+    record (the frame it was kept at and the score that kept it)."""
     if not Path(path).exists():
         raise FileNotFoundError(
-            f"{path}: no best policy (a run keeps one from its first finished training episode on, "
-            f"written at its checkpoints; runs of torchrl_sail versions before it have none)"
+            f"{path}: no such kept policy (a run writes it at its checkpoints once it keeps one; "
+            f"runs of torchrl_sail versions before it have none)"
         )
     state = torch.load(path, weights_only=True)
     name = ACTOR_KEYS[str(which)]
     if name not in state:
         raise ValueError(f"{path}: holds no {which} actor (only {sorted(k for k in state if 'actor' in k)})")
     loss.actor_network_params.data.update_(TensorDict(state[name]).unflatten_keys("."))
-    return {key: state[key] for key in ("frames", "train_return_mean", "window")}
+    return {key: value for key, value in state.items() if key not in ACTOR_KEYS.values()}
 
 
 # ----------------------------------------------------------------------------- logs and summary

@@ -44,12 +44,13 @@ from loop import (
 )
 from run_utils import (
     EXAMPLES_DIR,
+    BestEvaluatedPolicy,
     BestPolicy,
     RunCheckpoint,
     RunClock,
     actor_weights,
     crossings,
-    evaluate_best_policy,
+    evaluate_kept_policy,
     log_metrics,
     make_actor_average,
     make_loggers,
@@ -76,7 +77,7 @@ from utils import (
 )
 
 from torchrl_sail import DivergenceCheck, MixedReplayBuffer
-from torchrl_sail.harness import BEST_POLICY, start_or_resume
+from torchrl_sail.harness import BEST_EVALUATED_POLICY, BEST_POLICY, start_or_resume
 
 register_config_schema()  # the typed schema conf/config.yaml extends: Hydra checks every value against it
 
@@ -106,6 +107,8 @@ def main(cfg):  # noqa: F821
     actors = actor_weights(loss, average)  # online, TD3's target and the average, by eval.actor's names
     # the authors' best policy: the actors at the best mean of the last training returns
     best_policy = BestPolicy(actors, every_frames=cfg.eval.best_policy.every_frames, window=cfg.eval.best_policy.window)
+    # and the actors at the best periodic evaluation (Stable-Baselines3's EvalCallback rule)
+    best_evaluated = BestEvaluatedPolicy(actors)
 
     # --- Algorithm 1's TD3 batches get the reward of the *current* D (and RND predictor) at sample
     # time (reward.source=env: the env's alone), D once per distinct stored row of a block; DDPGfD's
@@ -124,6 +127,7 @@ def main(cfg):  # noqa: F821
         "rng": GlobalRNGState(),
         "run": run,
         "best_policy": best_policy,
+        "best_evaluated_policy": best_evaluated,
         **{f"optim_{name}": optimizer for name, optimizer in optimizers.items()},
         **({"recent": FilledRows(recent)} if recent is not replay else {}),
         **({"rnd": rnd} if rnd is not None else {}),
@@ -143,7 +147,9 @@ def main(cfg):  # noqa: F821
 
     # --- Algorithm 1's steps
     update_teacher = TeacherUpdate(teacher, alpha_scheduler, adaptive=cfg.algo.adaptive)
-    evaluations = make_evaluations(cfg, eval_envs, actor, actors, run, teacher_return, loggers, run_dir)
+    evaluations = make_evaluations(
+        cfg, eval_envs, actor, actors, run, teacher_return, loggers, run_dir, best_evaluated=best_evaluated
+    )
     update = make_prioritized_update(cfg, make_update(cfg, loss, optimizers, target_updater), sail_batches, loss)
     td3_block = make_td3_block(
         cfg, sail_batches, update, actor, loss, alpha_scheduler, optimizers, gradient_steps=run["gradient_steps"]
@@ -164,7 +170,11 @@ def main(cfg):  # noqa: F821
         loggers=loggers,
         divergence=divergence,
         clock=clock,
-        after_save=[lambda: best_policy.write(run_dir / BEST_POLICY)],  # after the checkpoint it matches
+        # after the checkpoint they match
+        after_save=[
+            lambda: best_policy.write(run_dir / BEST_POLICY),
+            lambda: best_evaluated.write(run_dir / BEST_EVALUATED_POLICY),
+        ],
     )
     metrics, once, last_log = {}, {}, frames  # once: logged at the next log only
     try:
@@ -231,7 +241,8 @@ def main(cfg):  # noqa: F821
         teacher_source=teacher_source,
         clock=clock,
         alpha_switch_frame=alpha_scheduler.switched_at_frame,
-        best_policy=evaluate_best_policy(cfg, best_policy, actor, make_env),
+        best_policy=evaluate_kept_policy(cfg, best_policy, actor, make_env),
+        best_evaluated_policy=evaluate_kept_policy(cfg, best_evaluated, actor, make_env),
         evaluated_actor=str(cfg.eval.actor),
         num_promoted=teacher.writer.num_promoted,
         teacher_threshold=teacher.writer.threshold,

@@ -779,6 +779,26 @@ def test_fall_share_is_pooled_over_the_seeds_that_passed(tmp_path):
     assert "- teacher return 100.0; no eval above it within 7k frames\n" in details  # sail seed 2
 
 
+def test_best_evaluated_policy_over_the_seeds_that_kept_it(tmp_path):
+    """The best evaluated policy's 50-episode figures (CSV columns and each run's details), over the
+    seeds whose summary has one."""
+    for seed, value in ((0, 320.0), (1, 180.0), (2, None)):
+        folder = write_run(tmp_path / "sail" / f"seed{seed}", seed=seed, evals=frames_curve([100.0] * 5))
+        if value is not None:  # seed 2: a run from before best_evaluated_policy
+            record = {"frames": 30_000, "periodic_eval_return": 410.0, "eval_return": value, "episodes": 50}
+            update_summary(folder, best_evaluated_policy=record)
+    text, rows = run_aggregate([tmp_path], tmp_path / "out", per_run=True)
+    sail = rows["Hopper-v4", "paper", "sail"]
+    assert float(sail["best_evaluated_mean"]) == pytest.approx(250.0)
+    assert float(sail["best_evaluated_std"]) == pytest.approx(98.994949)  # ddof=1 of 320, 180: 70 * sqrt(2)
+    assert sail["best_evaluated_n"] == "2" and sail["n_seeds"] == "3"
+    details = text.split("## Runs\n\n")[1]
+    assert (
+        "- best evaluated policy (kept at 30000 frames, evaluated 410 then): eval 320 over 50 other episodes" in details
+    )
+    assert details.count("- best evaluated policy") == 2
+
+
 def test_best_policy_mean_and_std_over_the_seeds_that_evaluated_it(tmp_path):
     def best_policy(value: float | None) -> dict:
         record = {"frames": 2000, "train_return_mean": 280.0, "window": 100}

@@ -573,7 +573,7 @@ def test_best_policy_keeps_the_weights_at_the_best_window_mean_and_resumes(tmp_p
     a strictly higher mean keeps the actor's and the target actor's weights of that moment; the
     state survives a checkpoint, and best_policy.pt loads into another loss."""
     import torch
-    from run_utils import BestPolicy, actor_weights, load_best_policy
+    from run_utils import BestPolicy, actor_weights, load_kept_policy
     from torchrl.checkpoint import Checkpoint
 
     actor, loss, _ = _td3_loss()
@@ -604,7 +604,7 @@ def test_best_policy_keeps_the_weights_at_the_best_window_mean_and_resumes(tmp_p
         weights[frames] = first_weight(loss.actor_network_params)
         assert best.observe(torch.tensor(returns), before=before, frames=frames) is kept, frames
         before = frames
-    assert (best.frames, best.mean) == (2000, 40.0)
+    assert (best.frames, best.score) == (2000, 40.0)
     assert first_weight(best.params("online")) == pytest.approx(weights[2000])  # the weights of frame 2000
     assert first_weight(best.params("target")) != first_weight(loss.target_actor_network_params)  # not the last
     kept_target = best.kept["target_actor"].clone()
@@ -614,13 +614,13 @@ def test_best_policy_keeps_the_weights_at_the_best_window_mean_and_resumes(tmp_p
     _, other_loss, _ = _td3_loss()
     resumed = BestPolicy(actor_weights(other_loss), every_frames=1000, window=3)
     Checkpoint(best_policy=resumed).load(tmp_path / "ckpt")
-    assert (resumed.frames, resumed.mean, resumed.returns) == (2000, 40.0, [0.0, 20.0, 100.0])
+    assert (resumed.frames, resumed.score, resumed.returns) == (2000, 40.0, [0.0, 20.0, 100.0])
     assert (resumed.kept["target_actor"] == kept_target).all()
-    record = load_best_policy(tmp_path / "best_policy.pt", other_loss, "target")
+    record = load_kept_policy(tmp_path / "best_policy.pt", other_loss, "target")
     assert record == {"frames": 2000, "train_return_mean": 40.0, "window": 3}
     assert (other_loss.actor_network_params.data == kept_target).all()
-    with pytest.raises(FileNotFoundError, match="no best policy"):
-        load_best_policy(tmp_path / "none.pt", other_loss, "online")
+    with pytest.raises(FileNotFoundError, match="none.pt: no such kept policy"):
+        load_kept_policy(tmp_path / "none.pt", other_loss, "online")
 
 
 def test_best_policy_writes_nothing_before_a_training_episode_ends(tmp_path):
@@ -688,7 +688,7 @@ def test_best_policy_keeps_the_averaged_actor_and_loads_it(tmp_path):
     """With an averaged actor, the best policy keeps its weights too, and best_policy.pt loads them
     by eval.actor's name average."""
     import torch
-    from run_utils import ActorAverage, BestPolicy, actor_weights, load_best_policy
+    from run_utils import ActorAverage, BestPolicy, actor_weights, load_kept_policy
 
     _, loss, _ = _td3_loss()
     average = ActorAverage(loss.actor_network_params, memory_frames=1000, start=0)
@@ -703,13 +703,13 @@ def test_best_policy_keeps_the_averaged_actor_and_loads_it(tmp_path):
     assert all((value == 0.25).all() for value in best.params("average").values(True, True))
     best.write(tmp_path / "best_policy.pt")
     _, other_loss, _ = _td3_loss()
-    load_best_policy(tmp_path / "best_policy.pt", other_loss, "average")
+    load_kept_policy(tmp_path / "best_policy.pt", other_loss, "average")
     assert all((value == 0.25).all() for value in other_loss.actor_network_params.values(True, True))
     plain = BestPolicy(actor_weights(loss), every_frames=500, window=2)
     plain.observe(torch.tensor([1.0]), before=0, frames=500)
     plain.write(tmp_path / "plain.pt")
     with pytest.raises(ValueError, match="holds no average actor"):
-        load_best_policy(tmp_path / "plain.pt", other_loss, "average")
+        load_kept_policy(tmp_path / "plain.pt", other_loss, "average")
 
 
 def test_actor_drift_measures_the_blocks_change_and_the_target_gap():

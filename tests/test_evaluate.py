@@ -142,6 +142,26 @@ def test_evaluate_reproduces_the_best_policys_evaluation(trained, tmp_path):
     assert result["dense_return"]["mean"] == pytest.approx(best["eval_return"], rel=1e-6)
 
 
+def test_evaluate_reproduces_the_best_evaluated_policys_evaluation(trained, tmp_path):
+    """The run's one evaluation (at 2000 frames) keeps the best evaluated policy; the summary's figure
+    for it is evaluate.py's policy=best_evaluated on seed + 20000, and a run without the file is refused."""
+    summary = json.loads((trained / "summary.json").read_text())
+    best = summary["best_evaluated_policy"]
+    assert (best["frames"], best["periodic_eval_return"]) == (2000, summary["final_eval_return"])
+    assert best["actor"] == "online" and best["episodes"] == 2 and best["seed"] == 20000
+    proc = evaluate(f"run_dir={trained}", "policy=best_evaluated", "episodes=2", f"out={tmp_path / 'b.json'}")
+    result = json.loads((tmp_path / "b.json").read_text())
+    assert result["policy"] == "best_evaluated" and result["policy_frames"] == 2000
+    assert result["dense_return"]["mean"] == pytest.approx(best["eval_return"], rel=1e-6)
+    assert "best evaluated policy at 2000 frames" in proc.stdout
+    (trained / "best_evaluated_policy.pt").rename(tmp_path / "moved.pt")
+    try:
+        proc = evaluate(f"run_dir={trained}", "policy=best_evaluated", "episodes=1", check=False)
+    finally:
+        (tmp_path / "moved.pt").rename(trained / "best_evaluated_policy.pt")
+    assert proc.returncode != 0 and f"run_dir={trained} has no best_evaluated_policy.pt" in proc.stderr
+
+
 def test_evaluate_target_actor_and_a_learner_without_one(trained, tmp_path):
     results = {}
     for actor in ("online", "target"):

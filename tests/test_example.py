@@ -154,6 +154,7 @@ def test_resume_restores_state(tmp_path, teacher_dir):
         "optim_critic",
         "optim_discriminator",
         "best_policy",
+        "best_evaluated_policy",
         "actor_average",
     )
     before = saved(run_dir, *names)
@@ -171,10 +172,11 @@ def test_resume_restores_state(tmp_path, teacher_dir):
     starts = before["run"].pop("starts"), after["run"].pop("starts")
     assert starts[1][:1] == starts[0] and [start["frames"] for start in starts[1]] == [0, 2000]  # each start kept
     assert after["run"] == before["run"] and before["run"]["frames"] == 2000
-    kept = before["best_policy"], after["best_policy"]  # the kept policy is part of the checkpoint
-    assert kept[0]["frames"] == kept[1]["frames"] is not None and kept[0]["mean"] == kept[1]["mean"]
-    for actor in ("actor", "average_actor"):
-        torch.testing.assert_close(kept[1][actor], kept[0][actor], rtol=0, atol=0)
+    for name in ("best_policy", "best_evaluated_policy"):  # the kept policies are part of the checkpoint
+        kept = before[name], after[name]
+        assert kept[0]["frames"] == kept[1]["frames"] is not None and kept[0]["score"] == kept[1]["score"]
+        for actor in ("actor", "target_actor", "average_actor"):
+            torch.testing.assert_close(kept[1][actor], kept[0][actor], rtol=0, atol=0)
     torch.testing.assert_close(after["replay"], before["replay"], rtol=0, atol=0)
     teachers = before["teacher"].writer, after["teacher"].writer
     assert teachers[0].window == teachers[1].window and teachers[0].threshold == teachers[1].threshold == 148.0
@@ -194,8 +196,13 @@ def test_resume_restores_state(tmp_path, teacher_dir):
     run(run_dir, *common, "collector.total_frames=3000", "resume=true")
     summary = json.loads((run_dir / "summary.json").read_text())
     assert summary["frames"] == 3000 and summary["gradient_steps"] == 150 and summary["wall_seconds"] > walls[1]
-    frames = [f for f, _ in read_scalar(run_dir, "eval/return")]
-    assert frames == [1000, 2000, 3000]
+    evals = read_scalar(run_dir, "eval/return")
+    assert [f for f, _ in evals] == [1000, 2000, 3000]
+    # the best evaluation over both starts (the first of equals), its 10-episode figure, then its own episodes
+    best = max(evals, key=lambda e: e[1])
+    evaluated = summary["best_evaluated_policy"]
+    assert (evaluated["frames"], evaluated["periodic_eval_return"]) == (best[0], pytest.approx(best[1]))
+    assert evaluated["episodes"] == 50 and evaluated["seed"] == summary["seed"] + 20_000 and "eval_return" in evaluated
     assert summary["resumes"] == [{"frames": 2000, "changes": {"collector.total_frames": [2000, 3000]}}]
 
 

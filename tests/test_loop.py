@@ -16,7 +16,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "examples"))
 
 import loop  # noqa: E402
-from run_utils import RunCheckpoint, RunClock, evaluation_metrics  # noqa: E402
+from run_utils import BestEvaluatedPolicy, RunCheckpoint, RunClock, evaluation_metrics  # noqa: E402
 from tensordict.nn import TensorDictModule, TensorDictSequential  # noqa: E402
 from torchrl import timeit  # noqa: E402
 from torchrl.data import Bounded, LazyTensorStorage, TensorDictReplayBuffer  # noqa: E402
@@ -378,6 +378,29 @@ def test_evaluations_at_their_cadence_with_the_other_actors_and_videos(monkeypat
     evaluations(1500, 2000)
     assert evaluated == [("e", 1000), ("e", 2000)] and other == [("o", None), ("a", "avg")] * 2
     assert videos == [2000] and swapped == ["tgt"]
+
+
+def test_evaluations_keep_the_actors_at_the_evaluated_actors_best_return(monkeypatch):
+    """The best evaluated policy follows the evaluated actor's eval/return alone (10, 30, 20, 30: the
+    second, as a tie does not replace it), whatever the other actors return, and keeps every actor's
+    weights of that evaluation."""
+    evaluated_returns = iter([10.0, 30.0, 20.0, 30.0])
+    monkeypatch.setattr(loop, "record_evaluation", lambda *args: {"eval/return": next(evaluated_returns)})
+    monkeypatch.setattr(loop, "actor_returns", lambda env, actor, weights, episodes, steps: [100.0])  # online's
+    cfg = SimpleNamespace(
+        eval=SimpleNamespace(actor="target", every_frames=1000, video_every_frames=0, episodes=1),
+        env=SimpleNamespace(max_episode_steps=1000),
+    )
+    actors = {"online": TensorDict({"w": torch.zeros(1)}), "target": TensorDict({"w": torch.zeros(1)})}
+    best = BestEvaluatedPolicy(actors)
+    envs = {"evaluated": "e", "others": {"online": "o"}}
+    evaluations = loop.Evaluations(cfg, None, actors, {}, 15.0, envs, None, best_evaluated=best)
+    for frames in (1000, 2000, 3000, 4000):
+        actors["online"]["w"] += 1.0  # the weights at each evaluation: frames / 1000
+        actors["target"]["w"] -= 1.0
+        evaluations(frames - 1000, frames)
+    assert best.record() == {"frames": 2000, "periodic_eval_return": 30.0}
+    assert best.params("online")["w"].tolist() == [2.0] and best.params("target")["w"].tolist() == [-2.0]
 
 
 def test_eval_envs_one_per_other_actor_the_run_has():

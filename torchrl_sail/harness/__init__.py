@@ -13,6 +13,7 @@ the ``harness`` extra, ``pip install -e ".[harness]"``.
 from torchrl_sail._compat import native_bf16_matmul, render_fps  # what the scripts read through private APIs
 from torchrl_sail.harness.machine import MATMUL_FLAGS, cpu_flags, cpu_model, provenance
 from torchrl_sail.harness.runs import (
+    BEST_EVALUATED_POLICY,
     BEST_POLICY,
     CHECKPOINT,
     COLLECTED_SCALARS,
@@ -50,6 +51,7 @@ from torchrl_sail.harness.summary import (
 
 __all__ = [
     "ACTOR_SATURATED",
+    "BEST_EVALUATED_POLICY",
     "BEST_POLICY",
     "CHECKPOINT",
     "COLLECTED_SCALARS",

@@ -44,6 +44,7 @@ from torchrl_sail.harness.machine import provenance
 CONFIG = "config.yaml"
 CHECKPOINT = "checkpoint"
 BEST_POLICY = "best_policy.pt"
+BEST_EVALUATED_POLICY = "best_evaluated_policy.pt"
 SUMMARY = "summary.json"
 LEARNING_CURVE = "learning_curve.png"
 SCALARS = Path("logs") / "scalars"
