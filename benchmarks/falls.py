@@ -14,10 +14,13 @@ passed" where it never did), and how often one fell where the other held. Then, 
 runs, each diagnostic averaged over the ``--window`` frames before an evaluation after either
 actor's first pass, at each actor's falls (from its own first pass) against its other evaluations:
 ``actor/change`` and ``actor/target_gap`` (how far a TD3 block moves the actor, how far it is from
-the target actor), ``sail/q_mean``, ``sail/d_reward_mean``, ``train/dense_return`` and the
-trajectories promoted, each as a z-score within its run, so that envs pool; and, where the run
-logged it, the share of the evaluation's episodes below the teacher (a fall of one episode in ten,
-or a collapse). How many falls were over by the next evaluation tells a dip of one evaluation from a
+the target actor), ``sail/q_mean``, ``sail/d_reward_mean``, ``train/dense_return``, D's accuracy
+and reward on each side, the teacher buffer's threshold C and the trajectories promoted, each as a
+z-score within its run, so that envs pool; and, where the run logged it, the share of the
+evaluation's episodes below the teacher (a fall of one episode in ten, or a collapse). These levels
+drift with a run's frames, and falls may come earlier or later in a run than its other evaluations
+(the report says where), so a second table gives each diagnostic's change since the window before the previous
+evaluation, apart from that drift. How many falls were over by the next evaluation tells a dip of one evaluation from a
 collapse that lasts; how many of the target actor's falls came at a fall of the online actor tells
 whether the target actor, an average of the actor's recent weights, falls with it. A run that also
 evaluated an averaged actor (``eval.average_frames``, ``eval/return_average``) gets its fall share
@@ -42,6 +45,11 @@ DIAGNOSTICS = (
     "sail/q_mean",
     "sail/d_reward_mean",
     "train/dense_return",
+    "d/accuracy_agent",
+    "d/accuracy_teacher",
+    "d/reward_agent",
+    "d/reward_teacher",
+    "teacher/threshold",
 )
 PROMOTED = "teacher/num_promoted"
 
@@ -118,6 +126,7 @@ def run_rows(folder: Path, window: int, given_teacher: float | None = None) -> t
     rows = []
     for f in after:
         row = {
+            "frames": f,
             "fell": judged("online", f),
             "target_fell": judged("target", f),
             "online_below": below["online"].get(f),
@@ -173,6 +182,21 @@ def mean_of(rows: list[dict], key: str) -> str:
     return f"{text} (n={len(values)})"
 
 
+def changes(rows: list[dict]) -> list[dict]:
+    """``rows`` with each diagnostic (and ``promoted``) as its change since the row before (the window
+    before the previous evaluation; ``None`` for the first row or a missing value): what moved just
+    before an evaluation, apart from the slow drift of a run that the levels share with time."""
+    keys = (*DIAGNOSTICS, "promoted")
+    out = []
+    for before, row in zip([None, *rows[:-1]], rows, strict=True):
+        delta = {
+            key: None if before is None or row[key] is None or before[key] is None else row[key] - before[key]
+            for key in keys
+        }
+        out.append({**row, **delta})
+    return out
+
+
 def standardized(rows: list[dict]) -> list[dict]:
     """``rows`` with each diagnostic (and ``promoted``) as a z-score within the run: its distance from
     the run's mean over these rows in the run's standard deviations, so that runs of different envs,
@@ -200,10 +224,11 @@ def report(folders: list[Path], window: int, given_teacher: float | None = None)
         "| online fell alone | target fell alone |",
         "|---|---|---|---|---|---|---|",
     ]
-    pooled, lines_of_runs = [], []
+    pooled, pooled_changes, lines_of_runs = [], [], []
     for folder in folders:
         line, rows = run_rows(folder, window, given_teacher)
         pooled += standardized(rows)
+        pooled_changes += standardized(changes(rows))
         lines_of_runs.append(line)
         lines.append(
             f"| `{line['run']}` | {line['teacher']:.1f} | {line['passed_at'] or '-'} | {shown(line['online'])} "
@@ -255,7 +280,45 @@ def report(folders: list[Path], window: int, given_teacher: float | None = None)
         f"| {mean_of(online_fell, 'online_below')} | {mean_of(online_held, 'online_below')} "
         f"| {mean_of(target_fell, 'target_below')} | {mean_of(target_held, 'target_below')} |"
     )
-    return "\n".join(lines + average_report(lines_of_runs))
+    return "\n".join(lines + change_report(pooled_changes, window) + average_report(lines_of_runs))
+
+
+def change_report(pooled: list[dict], window: int) -> list[str]:
+    """Where in the runs the falls came, and the table of :func:`report` on each diagnostic's change
+    since the previous evaluation's window (:func:`changes`), each as a z-score within its run."""
+    groups = {}
+    for actor, flag in (("online", "fell"), ("target", "target_fell")):
+        judged = [row for row in pooled if row[flag] is not None]
+        groups[actor] = ([row for row in judged if row[flag]], [row for row in judged if not row[flag]])
+
+    def frames_after(rows: list[dict]) -> str:
+        return f"{statistics.fmean(row['frames'] for row in rows) / 1000:.0f}k" if rows else "-"
+
+    (online_fell, online_held), (target_fell, target_held) = groups["online"], groups["target"]
+    lines = [
+        "",
+        f"The levels above drift with a run's frames, and falls do not come evenly: the online actor's falls came "
+        f"at {frames_after(online_fell)} frames on average, its other evaluations after its pass at "
+        f"{frames_after(online_held)}"
+        + (
+            f"; the target actor's at {frames_after(target_fell)} and {frames_after(target_held)}"
+            if target_fell or target_held
+            else ""
+        )
+        + f". The change of each diagnostic from the {window}-frame window before the "
+        "previous evaluation to the one before this evaluation is apart from that drift (a z-score within its "
+        "run as above; a run's first evaluation after a pass has no change):",
+        "",
+        "| diagnostic, change since the previous window | before an online fall | before the online actor's others "
+        "| before a target fall | before the target actor's others |",
+        "|---|---|---|---|---|",
+    ]
+    lines += [
+        f"| `{key}` | {mean_of(online_fell, key)} | {mean_of(online_held, key)} "
+        f"| {mean_of(target_fell, key)} | {mean_of(target_held, key)} |"
+        for key in (*DIAGNOSTICS, "promoted")
+    ]
+    return lines
 
 
 def average_report(runs: list[dict]) -> list[str]:

@@ -59,6 +59,25 @@ def test_falls_of_both_actors_and_the_logs_before_them(tmp_path):
     )  # 50k
 
 
+def test_the_changes_since_the_previous_window_before_each_fall(tmp_path):
+    """The change table, hand-computed on rows(): actor/change's windows (0.5, 0.1, 0.9) at 30k, 40k, 50k
+    change by (-, -0.4, +0.8), z-scores (-1, 1) (mean 0.2, sd 0.6); promoted (2, 0, 3) by (-, -2, +3),
+    z-scores (-1, 1) (mean 0.5, sd 2.5). The online actor fell at 30k (no change: the first row) and 50k,
+    the target at 50k; where in the run the falls came, in frames."""
+    write_run(tmp_path / "run", rows())
+    _, after = falls.run_rows(tmp_path / "run", window=10_000)
+    deltas = falls.changes(after)
+    assert deltas[0]["actor/change"] is None and deltas[1]["actor/change"] == pytest.approx(-0.4)
+    assert [row["promoted"] for row in deltas] == [None, -2, 3]
+    text = falls.report([tmp_path / "run"], window=10_000)
+    table = text.split("| diagnostic, change since the previous window |")[1]
+    assert "| `actor/change` | 1.00 (n=1) | -1.00 (n=1) | 1.00 (n=1) | -1.00 (n=1) |" in table
+    assert "| `promoted` | 1.00 (n=1) | -1.00 (n=1) | 1.00 (n=1) | -1.00 (n=1) |" in table
+    assert "| `teacher/threshold` | - | - | - | - |" in table  # not logged by this run
+    assert "the online actor's falls came at 40k frames on average, its other evaluations after its pass at 40k" in text
+    assert "the target actor's at 50k and 35k" in text
+
+
 def test_the_share_of_episodes_below_the_teacher_at_each_actors_falls(tmp_path):
     below_online = {20_000: 0.0, 30_000: 0.8, 40_000: 0.0, 50_000: 1.0}
     below_target = {20_000: 0.0, 30_000: 0.1, 40_000: 0.0, 50_000: 0.6}
