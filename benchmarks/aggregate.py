@@ -1811,7 +1811,8 @@ def source_of(folder: Path, sources: dict[Path, Source]) -> Source:
 
 def generated_files(sources: dict[Path, Source]) -> dict[str, Callable[[], str]]:
     """The whole files made from committed runs, by path (relative to the repository): the campaign's
-    report (``results.md``, ``results.csv``), the trusted-default rule and ``falls.py``'s tables."""
+    report (``results.md``, ``results.csv``), the trusted-default rule and ``falls.py``'s tables
+    (:data:`FALLS`, and the trusted-default runs' ``benchmarks/results/trusted/falls.md``)."""
     campaign = source_of(CAMPAIGN, sources)
     files = {
         str(CAMPAIGN / "report" / "results.md"): campaign.report,
@@ -1822,7 +1823,20 @@ def generated_files(sources: dict[Path, Source]) -> dict[str, Callable[[], str]]
         files[path] = lambda folders=folders, given=teacher_return: (
             sibling("falls").report(folders, 10_000, given) + "\n"
         )
+    # the trusted-default runs that evaluated both actors where falls end episodes, as they come in
+    files["benchmarks/results/trusted/falls.md"] = lambda: (
+        sibling("falls").report(trusted_fall_runs(), 10_000, None) + "\n"
+    )
     return files
+
+
+def trusted_fall_runs() -> list[Path]:
+    """The trusted-default candidate's committed Hopper and Walker2d runs, Hopper's first."""
+    return [
+        folder
+        for env in ("Hopper-v4", "Walker2d-v4")
+        for folder in sorted(CAMPAIGN.glob(f"trusted/*-trusted/{env}/sail/seed*"))
+    ]
 
 
 @contextlib.contextmanager
