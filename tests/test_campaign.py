@@ -574,6 +574,14 @@ def test_ant_stage_runs_sail_and_dac_on_the_recorded_and_the_reproduced_columns(
     assert len(capsys.readouterr().out.splitlines()) == 12
 
 
+def test_table1_runs_every_seed_under_a_new_defaults_label(monkeypatch):
+    """Once the trusted default replaces the defaults, Table 1's 1M-frame SAIL runs all 12 cells under
+    that default's label, apart from the scale stage's runs of the defaults it replaced."""
+    monkeypatch.setattr(campaign, "TABLE1_LABEL", "paper-trusted")
+    table1 = [(c.env, c.seed, c.teacher) for c in campaign.plan() if c.stage == "table1"]
+    assert sorted(table1) == sorted((env, seed, "paper-trusted") for env in ENVS for seed in (0, 1, 2))
+
+
 def test_comparison_stages_run_every_row_of_the_papers_comparison_on_three_seeds():
     """Table 1's variants and Figure 2's baselines on the four envs, Figures 3-4's variants on Hopper and
     HalfCheetah (300k frames, seed by seed), then SAIL at 1M frames on the four envs."""
@@ -592,8 +600,13 @@ def test_comparison_stages_run_every_row_of_the_papers_comparison_on_three_seeds
     assert len(comparison) == 90 and {c.frames for c in comparison} == {300_000}
     assert [c.seed for c in comparison] == sorted(c.seed for c in comparison)
     assert all(c.teacher == "paper" and not c.overrides for c in comparison)
-    table1 = [(c.env, c.method, c.seed, c.frames) for c in cells if c.stage == "table1"]
-    assert sorted(table1) == sorted((env, "sail", seed, 1_000_000) for env in ENVS for seed in (0, 1, 2))
+    # with the scale stage's defaults, its two 1M-frame runs (seed 0) are Table 1's there, not rerun
+    table1 = [(c.env, c.method, c.seed, c.frames, c.teacher) for c in cells if c.stage == "table1"]
+    scale = [("HalfCheetah-v4", "sail", 0, 1_000_000, "paper"), ("Hopper-v4", "sail", 0, 1_000_000, "paper")]
+    assert sorted(table1 + scale) == sorted(
+        (env, "sail", seed, 1_000_000, "paper") for env in ENVS for seed in (0, 1, 2)
+    )
+    assert [(c.env, c.seed, c.frames) for c in cells if c.stage == "scale"] == [(e, s, f) for e, _, s, f, _ in scale]
     scripts = {c.method: campaign.script_for(c.method).name for c in comparison}
     assert scripts["gail"] == scripts["pofd"] == "gail.py" and scripts["ddpgfd"] == "sail_td3.py"
 
