@@ -126,7 +126,6 @@ def run_rows(folder: Path, window: int, given_teacher: float | None = None) -> t
     rows = []
     for f in after:
         row = {
-            "frames": f,
             "fell": judged("online", f),
             "target_fell": judged("target", f),
             "online_below": below["online"].get(f),
@@ -139,6 +138,10 @@ def run_rows(folder: Path, window: int, given_teacher: float | None = None) -> t
             row[tag] = window_mean(series[tag], f - window, f)
         row["promoted"] = last_at(series[PROMOTED], f) - last_at(series[PROMOTED], f - window)
         rows.append(row)
+    # where in the run each evaluation came: its frame as a z-score over these rows (0: the run's middle)
+    spread = statistics.pstdev(after) if len(after) > 1 else 0.0
+    for row, f in zip(rows, after, strict=True):
+        row["position"] = (f - statistics.fmean(after)) / spread if spread > 0 else None
     # a fall whose next evaluation is above the teacher again: a dip of one evaluation, not a collapse
     for row, following in zip(rows, [*after[1:], None], strict=True):
         for name, flag in (("online", "fell"), ("target", "target_fell")):
@@ -291,17 +294,16 @@ def change_report(pooled: list[dict], window: int) -> list[str]:
         judged = [row for row in pooled if row[flag] is not None]
         groups[actor] = ([row for row in judged if row[flag]], [row for row in judged if not row[flag]])
 
-    def frames_after(rows: list[dict]) -> str:
-        return f"{statistics.fmean(row['frames'] for row in rows) / 1000:.0f}k" if rows else "-"
-
     (online_fell, online_held), (target_fell, target_held) = groups["online"], groups["target"]
     lines = [
         "",
-        f"The levels above drift with a run's frames, and falls do not come evenly: the online actor's falls came "
-        f"at {frames_after(online_fell)} frames on average, its other evaluations after its pass at "
-        f"{frames_after(online_held)}"
+        "The levels above drift with a run's frames, and falls need not come evenly over a run: where each "
+        "evaluation came in its run (its frame as a z-score over the run's evaluations after a pass, 0 its middle), "
+        f"the online actor's falls {mean_of(online_fell, 'position')}, its other evaluations "
+        f"{mean_of(online_held, 'position')}"
         + (
-            f"; the target actor's at {frames_after(target_fell)} and {frames_after(target_held)}"
+            f"; the target actor's falls {mean_of(target_fell, 'position')}, its others "
+            f"{mean_of(target_held, 'position')}"
             if target_fell or target_held
             else ""
         )

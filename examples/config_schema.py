@@ -372,7 +372,7 @@ class BestPolicyConfig:
 
     every_frames: int = 500
     window: int = 100
-    episodes: int = 50  # 0: no final evaluation
+    episodes: int = 50  # 0: no final evaluation; also the best evaluated policy's (best_evaluated_policy.pt)
 
 
 @dataclass

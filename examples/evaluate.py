@@ -137,7 +137,7 @@ def check_args(args, cfg) -> None:
     if args.policy != "last" and cfg.algo.learner not in ("td3", "sac"):
         raise ValueError(
             f"policy={args.policy}: run_dir={args.run_dir} is algo={cfg.algo.name}, a {cfg.algo.learner} learner; "
-            f"only the off-policy runs of examples/sail_td3.py keep a best policy"
+            f"only the off-policy runs of examples/sail_td3.py keep the policies policy=best and best_evaluated load"
         )
     kept = KEPT_POLICIES.get(str(args.policy))
     if kept is not None and not (Path(args.run_dir) / kept).exists():

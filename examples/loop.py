@@ -415,8 +415,9 @@ class Evaluations:
     kept in ``run["evals"]`` (``eval/return``, with ``eval/min_return`` and ``eval/below_teacher``:
     :func:`run_utils.evaluation_metrics`), and with ``eval.other_actor`` of every other actor the
     run has (``eval/return_<online|target|average>`` and so on: same seeds, an env each); every
-    ``eval.video_every_frames`` frames a video of one episode of the evaluated actor. Each
-    evaluated actor's ``eval/return`` goes to ``best_evaluated`` (:class:`run_utils.BestEvaluatedPolicy`).
+    ``eval.video_every_frames`` frames a video of one episode of the evaluated actor. The
+    evaluated actor's (``eval.actor``'s) ``eval/return`` goes to ``best_evaluated``
+    (:class:`run_utils.BestEvaluatedPolicy`); the other actors' do not choose it.
 
     Args:
         actors: the live weights of each actor by name (:func:`run_utils.actor_weights`; ``None``:

@@ -133,7 +133,7 @@ def evaluate(env, actor, episodes: int, max_steps: int) -> float:
     return sum(e["dense_return"] for e in evaluate_episodes(env, actor, episodes, max_steps)) / episodes
 
 
-# the file keys of each actor's weights in best_policy.pt (and BestPolicy's state)
+# the file keys of each actor's weights in best_policy.pt and best_evaluated_policy.pt (and KeptPolicy's state)
 ACTOR_KEYS = {"online": "actor", "target": "target_actor", "average": "average_actor"}
 
 
@@ -324,7 +324,8 @@ class KeptPolicy:
         }
 
     def load_state_dict(self, state: dict) -> None:
-        self.score, self.frames = state["score"], state["frames"]
+        # a BestPolicy checkpointed before KeptPolicy held its score as "mean"
+        self.score, self.frames = state["score"] if "score" in state else state["mean"], state["frames"]
         for name, kept in self.kept.items():
             kept.update_(TensorDict(state[name]).unflatten_keys("."))
 

@@ -17,8 +17,8 @@ trajectory) takes effect through the batch composition: a TD3 batch holds
 round(alpha * 256) teacher rows and SAILLoss(mixing="batch") weighs every row alike.
 The loop's steps, and each method's variations of them, are the objects of ``loop.py``.
 Each run writes to its folder (``hydra.run.dir``): the resolved config, TorchRL logger
-outputs (``logs/``), ``learning_curve.png``, ``summary.json``, ``best_policy.pt`` and
-``checkpoint/`` (``resume=true`` continues from it).
+outputs (``logs/``), ``learning_curve.png``, ``summary.json``, ``best_policy.pt``,
+``best_evaluated_policy.pt`` and ``checkpoint/`` (``resume=true`` continues from it).
 """
 
 from __future__ import annotations
@@ -81,6 +81,9 @@ from torchrl_sail.harness import BEST_EVALUATED_POLICY, BEST_POLICY, start_or_re
 
 register_config_schema()  # the typed schema conf/config.yaml extends: Hydra checks every value against it
 
+# state a checkpoint of an earlier version lacks, kept from the resume on
+STARTS_EMPTY_ON_RESUME = ("best_evaluated_policy",)
+
 
 @hydra.main(version_base="1.3", config_path="../conf", config_name="config")
 def main(cfg):  # noqa: F821
@@ -137,7 +140,14 @@ def main(cfg):  # noqa: F821
     }
     checkpoint = Checkpoint(**stateful)
     start_or_resume(
-        checkpoint, run_dir, run, resuming, optimizers=optimizers.values(), config=cfg, code_dir=EXAMPLES_DIR
+        checkpoint,
+        run_dir,
+        run,
+        resuming,
+        optimizers=optimizers.values(),
+        config=cfg,
+        code_dir=EXAMPLES_DIR,
+        may_start_empty=STARTS_EMPTY_ON_RESUME,
     )
     if resuming:
         # The env restarts on a fresh episode: a trajectory cut by the stop is not offered.

@@ -623,6 +623,19 @@ def test_best_policy_keeps_the_weights_at_the_best_window_mean_and_resumes(tmp_p
         load_kept_policy(tmp_path / "none.pt", other_loss, "online")
 
 
+def test_best_policy_loads_the_state_of_a_checkpoint_that_named_its_score_mean():
+    """A BestPolicy checkpointed before KeptPolicy held its best window mean as "mean"."""
+    from run_utils import BestPolicy, actor_weights
+
+    _, loss, _ = _td3_loss()
+    state = BestPolicy(actor_weights(loss), every_frames=500, window=3).state_dict()
+    state["mean"] = state.pop("score")
+    state.update(mean=42.0, frames=1500, returns=[40.0, 44.0])
+    resumed = BestPolicy(actor_weights(loss), every_frames=500, window=3)
+    resumed.load_state_dict(state)
+    assert (resumed.score, resumed.frames, resumed.returns) == (42.0, 1500, [40.0, 44.0])
+
+
 def test_best_policy_writes_nothing_before_a_training_episode_ends(tmp_path):
     import torch
     from run_utils import BestPolicy, actor_weights

@@ -11,7 +11,7 @@ import time
 
 import pytest
 import torch
-from example_runner import REPO, fail_in_process, read_scalar, run, saved, start
+from example_runner import REPO, evaluate, fail_in_process, read_scalar, run, saved, start
 
 from torchrl_sail import make_sail_env
 
@@ -202,7 +202,12 @@ def test_resume_restores_state(tmp_path, teacher_dir):
     best = max(evals, key=lambda e: e[1])
     evaluated = summary["best_evaluated_policy"]
     assert (evaluated["frames"], evaluated["periodic_eval_return"]) == (best[0], pytest.approx(best[1]))
-    assert evaluated["episodes"] == 50 and evaluated["seed"] == summary["seed"] + 20_000 and "eval_return" in evaluated
+    assert evaluated["episodes"] == 50 and evaluated["seed"] == summary["seed"] + 20_000
+    # the figure is the kept weights' own: evaluate.py loads them from best_evaluated_policy.pt
+    evaluate(f"run_dir={run_dir}", "policy=best_evaluated", "episodes=50", f"out={tmp_path / 'best.json'}")
+    result = json.loads((tmp_path / "best.json").read_text())
+    assert result["policy_frames"] == evaluated["frames"] and result["seed"] == evaluated["seed"]
+    assert result["dense_return"]["mean"] == pytest.approx(evaluated["eval_return"], rel=1e-6)
     assert summary["resumes"] == [{"frames": 2000, "changes": {"collector.total_frames": [2000, 3000]}}]
 
 

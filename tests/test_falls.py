@@ -63,7 +63,7 @@ def test_the_changes_since_the_previous_window_before_each_fall(tmp_path):
     """The change table, hand-computed on rows(): actor/change's windows (0.5, 0.1, 0.9) at 30k, 40k, 50k
     change by (-, -0.4, +0.8), z-scores (-1, 1) (mean 0.2, sd 0.6); promoted (2, 0, 3) by (-, -2, +3),
     z-scores (-1, 1) (mean 0.5, sd 2.5). The online actor fell at 30k (no change: the first row) and 50k,
-    the target at 50k; where in the run the falls came, in frames."""
+    the target at 50k; where in the run the falls came, as a z-score of their frames."""
     write_run(tmp_path / "run", rows())
     _, after = falls.run_rows(tmp_path / "run", window=10_000)
     deltas = falls.changes(after)
@@ -74,8 +74,9 @@ def test_the_changes_since_the_previous_window_before_each_fall(tmp_path):
     assert "| `actor/change` | 1.00 (n=1) | -1.00 (n=1) | 1.00 (n=1) | -1.00 (n=1) |" in table
     assert "| `promoted` | 1.00 (n=1) | -1.00 (n=1) | 1.00 (n=1) | -1.00 (n=1) |" in table
     assert "| `teacher/threshold` | - | - | - | - |" in table  # not logged by this run
-    assert "the online actor's falls came at 40k frames on average, its other evaluations after its pass at 40k" in text
-    assert "the target actor's at 50k and 35k" in text
+    # positions: 30k, 40k, 50k are (-1.22, 0, 1.22) within the run (mean 40k, sd 8165)
+    assert "the online actor's falls 0.00 (n=2), its other evaluations 0.00 (n=1)" in text
+    assert "the target actor's falls 1.22 (n=1), its others -0.61 (n=2)" in text
 
 
 def test_the_share_of_episodes_below_the_teacher_at_each_actors_falls(tmp_path):

@@ -242,6 +242,22 @@ def test_restore_refuses_a_checkpoint_holding_state_this_run_would_drop(tmp_path
     assert torch.equal(layer.weight, before)  # refused before the weights load (only the run dict, to check it)
 
 
+def test_restore_starts_empty_only_the_components_a_newer_version_added(tmp_path, capsys):
+    """A checkpoint without a component this run keeps: refused, naming it, unless it is one of
+    may_start_empty, which keeps its fresh state while the others load; the resume records it."""
+    saved_run(tmp_path / "run", weight=0.5)  # run, layer, optim
+    run, layer, optimizer, _ = fresh()
+    kept = torch.nn.Linear(2, 1)  # stands in for a newer version's state
+    torch.nn.init.constant_(kept.weight, 7.0)
+    checkpoint = Checkpoint(run=run, layer=layer, optim=optimizer, kept=kept)
+    with pytest.raises(ValueError, match=r"lacks \['kept'\], which this run keeps"):
+        restore_run(checkpoint, tmp_path / "run", run)
+    restore_run(checkpoint, tmp_path / "run", run, may_start_empty=("kept",))
+    assert torch.equal(layer.weight, torch.full((1, 2), 0.5)) and torch.equal(kept.weight, torch.full((1, 2), 7.0))
+    assert run["resumes"] == [{"frames": 2000, "changes": {}, "started_empty": ["kept"]}]
+    assert "the checkpoint has no ['kept'] (another version's); they start from here" in capsys.readouterr().out
+
+
 def test_restore_without_or_with_a_damaged_checkpoint(tmp_path):
     run, _, _, checkpoint = fresh()
     with pytest.raises(FileNotFoundError, match="resume=true but there is no checkpoint at"):

@@ -9,7 +9,8 @@ A run folder (the example scripts' ``hydra.run.dir``) holds:
 - ``logs/scalars/<tag>.csv``: TorchRL's ``CSVLogger`` rows ``frames,value``, one file per tag
   (``eval/return`` is ``logs/scalars/eval/return.csv``);
 - ``best_policy.pt``: the policy the run kept as its best by its own training returns (the
-  SAIL authors' rule, written by the scripts at each checkpoint);
+  SAIL authors' rule, written by the scripts at each checkpoint), and ``best_evaluated_policy.pt``,
+  the policy at its best periodic evaluation;
 - ``summary.json`` (:func:`write_summary`) and ``learning_curve.png``
   (:func:`plot_learning_curve`), written when the run has done its budget.
 
@@ -345,6 +346,7 @@ def start_or_resume(
     truncate_logs: bool = True,
     config=None,
     may_change: Iterable[str] = RESUME_MAY_CHANGE,
+    may_start_empty: Iterable[str] = (),
     code_dir: Path | None = None,
 ) -> None:
     """Restores ``checkpoint`` from ``run_dir`` when ``resuming`` (:func:`restore_run`), appends this
@@ -369,7 +371,15 @@ def start_or_resume(
     if resuming:
         optimizers = list(optimizers)
         configured = [[_settings(group) for group in optimizer.param_groups] for optimizer in optimizers]
-        restore_run(checkpoint, run_dir, run, truncate_logs=truncate_logs, config=current, may_change=may_change)
+        restore_run(
+            checkpoint,
+            run_dir,
+            run,
+            truncate_logs=truncate_logs,
+            config=current,
+            may_change=may_change,
+            may_start_empty=may_start_empty,
+        )
         for optimizer, settings in zip(optimizers, configured, strict=True):
             for group, setting in zip(optimizer.param_groups, settings, strict=True):
                 group.update(setting)
@@ -410,6 +420,7 @@ def restore_run(
     truncate_logs: bool = True,
     config: Mapping | None = None,
     may_change: Iterable[str] = RESUME_MAY_CHANGE,
+    may_start_empty: Iterable[str] = (),
 ) -> None:
     """Restores every component of ``checkpoint`` from ``<run_dir>/checkpoint``, after checking it is this run's.
 
@@ -424,13 +435,17 @@ def restore_run(
     newer version, at this run's values; :func:`config_additions`) and those it lacks and the
     checkpoint's has (``"removed"``, at their saved values). ``truncate_logs`` then drops
     the CSV rows logged after the checkpoint's frame (:func:`truncate_scalar_logs`: this run logs
-    them again); offline runs, whose logs are not indexed by frames, keep theirs.
+    them again); offline runs, whose logs are not indexed by frames, keep theirs. A component of
+    ``may_start_empty`` (state a newer version keeps, e.g. ``best_evaluated_policy``) that the
+    checkpoint lacks keeps its fresh state from the checkpoint's frame on, also recorded in
+    ``run["resumes"]`` (``"started_empty"``).
 
     Raises:
         FileNotFoundError: no ``manifest.json`` in the checkpoint folder.
         ValueError: an unreadable checkpoint, one written by another env, algo, seed or teacher,
             a config change outside ``may_change`` (each such key named with its saved and
-            its new value), or a checkpoint holding components ``checkpoint`` lacks (named).
+            its new value), a checkpoint holding components ``checkpoint`` lacks, or lacking
+            components ``checkpoint`` has, outside ``may_start_empty`` (named).
     """
     path = checkpoint_dir(run_dir)
     if not (path / "manifest.json").exists():
@@ -460,13 +475,20 @@ def restore_run(
     added = {} if trained is None else {k: v for k, v in config_additions(trained, config).items() if k != "resume"}
     removed = {} if trained is None else {k: v for k, v in config_additions(config, trained).items() if k != "resume"}
     # TorchRL's Checkpoint skips saved components it was not given: their state would be lost for good
-    dropped = sorted(set(checkpoint.manifest(path)["components"]).difference(checkpoint.components))
+    saved = set(checkpoint.manifest(path)["components"])
+    dropped = sorted(saved.difference(checkpoint.components))
     if dropped:
         raise ValueError(
             f"resume: {path} holds {dropped}, which this run does not keep: it was trained with settings that "
             f"need them (e.g. algo.sac.fixed_alpha=false for a learned temperature's optimizer); resume with those."
         )
-    checkpoint.load(path)
+    lacking = sorted(set(checkpoint.components).difference(saved))
+    if set(lacking).difference(may_start_empty):
+        raise ValueError(
+            f"resume: {path} lacks {sorted(set(lacking).difference(may_start_empty))}, which this run keeps: it "
+            f"was written with other settings or by another version; resume with those."
+        )
+    checkpoint.load(path, components=sorted(saved))
     run.setdefault("resumes", [])  # a checkpoint of an earlier version has none
     run.setdefault("wall_seconds", None)  # nor its wall time: unknown
     frames = run["frames"]
@@ -476,9 +498,12 @@ def restore_run(
         if keys:
             listed = ", ".join(f"{k}={v!r}" for k, v in keys.items())
             print(f"resume at frame {frames}: the checkpoint's config {what} {listed} (another version's settings)")
-    if changes or added or removed:
+    if lacking:
+        print(f"resume at frame {frames}: the checkpoint has no {lacking} (another version's); they start from here")
+    if changes or added or removed or lacking:
         resume = {"frames": frames, "changes": {k: [o, n] for k, (o, n) in changes.items()}}
         resume.update({name: keys for name, keys in (("added", added), ("removed", removed)) if keys})
+        resume.update({"started_empty": lacking} if lacking else {})
         run["resumes"].append(resume)
     if truncate_logs:
         truncate_scalar_logs(run_dir, run["frames"])
