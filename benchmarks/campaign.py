@@ -27,8 +27,9 @@ and ``table1`` SAIL at 1M frames (seeds 0-2 each; under the label of the default
 ``TABLE1_LABEL``: with the scale stage's defaults, their two 1M-frame runs are its seed 0 there),
 none a default.
 ``--envs`` and ``--seeds`` keep only those cells of the stages (``--stages weak preact --seeds 0``
-pairs each "before" seed with its "after" sooner). ``--jobs`` runs go at once; rerunning the same
-command after an interruption continues where it stopped.
+pairs each "before" seed with its "after" sooner), and ``--methods`` keeps only those methods' cells.
+``--jobs`` runs go at once; rerunning the same command after an interruption continues where it
+stopped, the started runs first (:func:`started_first`).
 ``--teachers-dir`` holds the SAIL authors' teacher files
 (``expert_data_no_img_<Env>_scores_<score>_episodes_1.npz``; ``python -m torchrl_sail.data.download``
 fetches them, Ant's included).
@@ -430,6 +431,18 @@ def status(cells: list[Cell], out: Path, jobs: int = 2) -> list[str]:
     return lines + time_left(left, [pace for pace in paces if pace], jobs)
 
 
+def started_first(cells: list[Cell], out: Path) -> list[Cell]:
+    """``cells`` with the started ones (a checkpoint saved, not finished) first, each part in its
+    order: a queue restarted on a machine that kept its run folders finishes what it began before it
+    starts anything new, so less is lost if the next restart is on a fresh machine."""
+
+    def began(cell: Cell) -> bool:
+        run_dir = run_dir_of(cell, out)
+        return not finished(run_dir) and checkpoint_frames(run_dir) is not None
+
+    return sorted(cells, key=lambda cell: not began(cell))  # a stable sort keeps each part's order
+
+
 def time_left(left: list[int], paces: list[float], jobs: int) -> list[str]:
     """The frames ``left`` (one entry per unfinished run that collects frames) and, at the median of
     ``paces`` (finished runs' frames per second, each run on its own) with ``jobs`` runs at a time (at
@@ -560,6 +573,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--seeds", nargs="+", type=int, metavar="SEED", help="only these seeds' cells")
     parser.add_argument(
+        "--methods", nargs="+", choices=sorted(learners()), metavar="METHOD", help="only these methods' cells"
+    )
+    parser.add_argument(
         "--overrides",
         nargs="+",
         default=[],
@@ -586,9 +602,10 @@ def main(argv: list[str] | None = None) -> int:
         and (base_label(c) != "random" or args.random_teacher)
         and (args.envs is None or c.env in args.envs)
         and (args.seeds is None or c.seed in args.seeds)
+        and (args.methods is None or c.method in args.methods)
     ]
     if not cells:
-        parser.error(f"--stages {' '.join(stages)} has no cell with these --envs and --seeds")
+        parser.error(f"--stages {' '.join(stages)} has no cell with these --envs, --seeds and --methods")
     if args.status:
         print("\n".join(status(cells, out, args.jobs)))
         return 0
@@ -611,6 +628,7 @@ def main(argv: list[str] | None = None) -> int:
             f"--stages precision runs optim.precision=bf16, which the {device} here emulates (a CPU without "
             "AVX-512 or AMX: ~20x slower): run it where bf16 is native, or on a GPU with --overrides device=cuda"
         )
+    cells = started_first(cells, out)
     commands = [
         (
             cell,

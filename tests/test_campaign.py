@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 from collections import Counter
 from pathlib import Path
 
@@ -628,16 +629,46 @@ def test_envs_and_seeds_keep_only_their_cells(tmp_path, capsys):
     lines = capsys.readouterr().out.splitlines()
     assert len(lines) == 8 and all("seed=0 " in line for line in lines)
     assert ["preact" in line for line in lines] == [False] * 2 + [True] * 6
+    # the trusted stage's DAC runs alone: seeds 3-4 on the four envs
+    assert campaign.main([*args, "--stages", "trusted", "--methods", "dac", "--dry-run"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 8 and all("algo=dac " in line for line in lines)
+    assert sorted(re.search(r"seed=(\d)", line).group(1) for line in lines) == ["3"] * 4 + ["4"] * 4
     # a filter that leaves nothing is an error, not a silent no-op
     with pytest.raises(SystemExit):
         campaign.main([*args, "--stages", "weak", "--seeds", "7", "--dry-run"])
-    assert "--stages weak has no cell with these --envs and --seeds" in capsys.readouterr().err
+    assert "--stages weak has no cell with these --envs, --seeds and --methods" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         campaign.main([*args, "--envs", "Ant-v4", "--dry-run"])  # no default stage runs Ant
     assert "--stages main scale teachers buffer has no cell with these --envs" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         campaign.main([*args, "--envs", "Humanoid-v4", "--dry-run"])
     assert "invalid choice: 'Humanoid-v4'" in capsys.readouterr().err
+
+
+def test_a_restarted_queue_resumes_its_started_runs_before_it_starts_new_ones(tmp_path, capsys):
+    """The ant stage's 12 runs: one finished and one started (a checkpoint at 50k) late in the plan;
+    the started one goes first, the rest in the plan's order, the finished one included (its run
+    skips itself in seconds)."""
+    out = tmp_path / "out"
+    teachers = tmp_path / "teachers"
+    teachers.mkdir()
+    (teachers / campaign.TEACHER_FILES["Ant-v4"]).touch()
+    args = ["--teachers-dir", str(teachers), "--out", str(out), "--stages", "ant", "--dry-run"]
+    assert campaign.main(args) == 0
+    planned = [re.search(r"hydra.run.dir=(\S+)", line).group(1) for line in capsys.readouterr().out.splitlines()]
+    assert len(planned) == 12
+    done, started = Path(planned[5]), Path(planned[9])
+    done.mkdir(parents=True)
+    (done / "summary.json").write_text(json.dumps({"frames": 300_000, "total_frames": 300_000}))
+    (started / "checkpoint" / "components" / "0009-run").mkdir(parents=True)
+    (started / "checkpoint" / "manifest.json").write_text(
+        json.dumps({"components": {"run": {"path": "components/0009-run"}}})
+    )
+    (started / "checkpoint" / "components" / "0009-run" / "value.json").write_text(json.dumps({"frames": 50_000}))
+    assert campaign.main(args) == 0
+    queued = [re.search(r"hydra.run.dir=(\S+)", line).group(1) for line in capsys.readouterr().out.splitlines()]
+    assert queued == [planned[9], *planned[:9], *planned[10:]]
 
 
 def test_every_planned_run_composes_a_valid_config_and_baselines_keep_their_references(tmp_path):
