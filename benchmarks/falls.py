@@ -20,7 +20,9 @@ z-score within its run, so that envs pool; and, where the run logged it, the sha
 evaluation's episodes below the teacher (a fall of one episode in ten, or a collapse). These levels
 drift with a run's frames, and falls may come earlier or later in a run than its other evaluations
 (the report says where), so a second table gives each diagnostic's change since the window before the previous
-evaluation, apart from that drift. How many falls were over by the next evaluation tells a dip of one evaluation from a
+evaluation, apart from that drift, and a third how often each actor fell after its run's largest
+rises of the threshold C against after its other changes, in each half of the run after a pass
+(:func:`rise_report`). How many falls were over by the next evaluation tells a dip of one evaluation from a
 collapse that lasts; how many of the target actor's falls came at a fall of the online actor tells
 whether the target actor, an average of the actor's recent weights, falls with it. A run that also
 evaluated an averaged actor (``eval.average_frames``, ``eval/return_average``) gets its fall share
@@ -31,6 +33,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import statistics
 import sys
 from pathlib import Path
@@ -227,11 +230,12 @@ def report(folders: list[Path], window: int, given_teacher: float | None = None)
         "| online fell alone | target fell alone |",
         "|---|---|---|---|---|---|---|",
     ]
-    pooled, pooled_changes, lines_of_runs = [], [], []
+    pooled, pooled_changes, pooled_rises, lines_of_runs = [], [], [], []
     for folder in folders:
         line, rows = run_rows(folder, window, given_teacher)
         pooled += standardized(rows)
         pooled_changes += standardized(changes(rows))
+        pooled_rises += largest_rises(changes(rows))
         lines_of_runs.append(line)
         lines.append(
             f"| `{line['run']}` | {line['teacher']:.1f} | {line['passed_at'] or '-'} | {shown(line['online'])} "
@@ -283,7 +287,9 @@ def report(folders: list[Path], window: int, given_teacher: float | None = None)
         f"| {mean_of(online_fell, 'online_below')} | {mean_of(online_held, 'online_below')} "
         f"| {mean_of(target_fell, 'target_below')} | {mean_of(target_held, 'target_below')} |"
     )
-    return "\n".join(lines + change_report(pooled_changes, window) + average_report(lines_of_runs))
+    return "\n".join(
+        lines + change_report(pooled_changes, window) + rise_report(pooled_rises) + average_report(lines_of_runs)
+    )
 
 
 def change_report(pooled: list[dict], window: int) -> list[str]:
@@ -320,6 +326,56 @@ def change_report(pooled: list[dict], window: int) -> list[str]:
         f"| {mean_of(target_fell, key)} | {mean_of(target_held, key)} |"
         for key in (*DIAGNOSTICS, "promoted")
     ]
+    return lines
+
+
+RISE = "teacher/threshold"  # the diagnostic whose rises rise_report counts falls after
+RISE_SHARE = 4  # a run's largest rises: its largest quarter of the changes of RISE
+
+
+def largest_rises(rows: list[dict]) -> list[dict]:
+    """``rows`` (:func:`changes`, not standardized) with ``largest_rise``: whether the row's change of
+    :data:`RISE` is among the run's ``ceil(n / RISE_SHARE)`` largest of its ``n`` changes, and above 0
+    (``None`` where the row has no change), and ``late``: whether it came in the second half of the run
+    after a pass (its ``position`` above 0; ``None`` for a run's only evaluation after a pass)."""
+    rises = sorted((row[RISE] for row in rows if row[RISE] is not None), reverse=True)
+    cut = rises[math.ceil(len(rises) / RISE_SHARE) - 1] if rises else None
+    return [
+        {
+            **row,
+            "largest_rise": None if row[RISE] is None else row[RISE] > 0 and row[RISE] >= cut,
+            "late": None if row["position"] is None else row["position"] > 0,
+        }
+        for row in rows
+    ]
+
+
+def rise_report(pooled: list[dict]) -> list[str]:
+    """How often each actor fell after the largest rises of the threshold C (:func:`largest_rises`),
+    against after its other changes, in the first and the second half of the runs after a pass: the
+    change table's C line as fall rates, with time held apart (falls come earlier in a run)."""
+
+    def rate(rows: list[dict], flag: str) -> str:
+        judged = [row[flag] for row in rows if row[flag] is not None]
+        return f"{100 * sum(judged) / len(judged):.0f}% ({sum(judged)}/{len(judged)})" if judged else "-"
+
+    lines = [
+        "",
+        f"Falls after the threshold C's largest rises: an evaluation whose window's C (`{RISE}`) rose, since the "
+        f"window before the previous evaluation, by one of its run's largest 1/{RISE_SHARE} of changes (and above 0), "
+        "against the run's other evaluations with a change; in the first and the second half of the run's "
+        "evaluations after a pass:",
+        "",
+        "| half of the run | C's change | online actor fell | target actor fell |",
+        "|---|---|---|---|",
+    ]
+    for late in (False, True):
+        for largest in (True, False):
+            part = [row for row in pooled if row["late"] is late and row["largest_rise"] is largest]
+            lines.append(
+                f"| {'second' if late else 'first'} | {'a largest rise' if largest else 'other'} "
+                f"| {rate(part, 'fell')} | {rate(part, 'target_fell')} |"
+            )
     return lines
 
 

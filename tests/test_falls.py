@@ -79,6 +79,35 @@ def test_the_changes_since_the_previous_window_before_each_fall(tmp_path):
     assert "the target actor's falls 1.22 (n=1), its others -0.61 (n=2)" in text
 
 
+def test_falls_after_the_thresholds_largest_rises_in_each_half_of_the_run(tmp_path):
+    """Both actors pass at 20k; evaluations 30k-90k follow, 30k-60k the first half (60k the middle).
+    C's window means (10, 10, 20, 21, 21, 40, 40) change by (-, 0, +10, +1, 0, +19, 0): of 6 changes the
+    largest ceil(6 / 4) = 2 are +19 (80k) and +10 (50k). Online falls at 50k, 80k, 90k; target at 40k, 90k."""
+    online = {10_000: 50, 20_000: 150, 30_000: 150, 40_000: 150, 50_000: 40}
+    online |= {60_000: 150, 70_000: 150, 80_000: 30, 90_000: 30}
+    target = {10_000: 50, 20_000: 140, 30_000: 140, 40_000: 90, 50_000: 140}
+    target |= {60_000: 140, 70_000: 140, 80_000: 140, 90_000: 90}
+    threshold = {25_000: 10, 35_000: 10, 45_000: 20, 55_000: 21, 65_000: 21, 75_000: 40, 85_000: 40}
+    write_run(
+        tmp_path / "run",
+        [
+            *(("eval/return_online", f, v) for f, v in online.items()),
+            *(("eval/return", f, v) for f, v in target.items()),
+            *(("teacher/threshold", f, v) for f, v in threshold.items()),
+        ],
+    )
+    _, after = falls.run_rows(tmp_path / "run", window=10_000)
+    marked = falls.largest_rises(falls.changes(after))
+    assert [row["largest_rise"] for row in marked] == [None, False, True, False, False, True, False]
+    assert [row["late"] for row in marked] == [False, False, False, False, True, True, True]
+    text = falls.report([tmp_path / "run"], window=10_000)
+    table = text.split("| half of the run | C's change | online actor fell | target actor fell |")[1]
+    assert "| first | a largest rise | 100% (1/1) | 0% (0/1) |" in table  # 50k
+    assert "| first | other | 0% (0/2) | 50% (1/2) |" in table  # 40k, 60k
+    assert "| second | a largest rise | 100% (1/1) | 0% (0/1) |" in table  # 80k
+    assert "| second | other | 50% (1/2) | 50% (1/2) |" in table  # 70k, 90k
+
+
 def test_the_share_of_episodes_below_the_teacher_at_each_actors_falls(tmp_path):
     below_online = {20_000: 0.0, 30_000: 0.8, 40_000: 0.0, 50_000: 1.0}
     below_target = {20_000: 0.0, 30_000: 0.1, 40_000: 0.0, 50_000: 0.6}
