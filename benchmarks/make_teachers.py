@@ -5,7 +5,7 @@
 
 Runs ``examples/make_teacher.py env=<env> frames=<budget> out=<out>/<env>_<budget>`` for each
 budget, one after the other (a teacher already made is kept, so an interrupted sweep resumes),
-then prints the ``--teacher td3_<budget>=<path>`` arguments for ``benchmarks/run_matrix.py``.
+then prints the ``--teacher td3_<budget/1000>k=<path>`` arguments (``td3_30k``) for ``benchmarks/run_matrix.py``.
 Add other teachers (the paper's ``.npz``, a ``.pt`` file) as more ``--teacher LABEL=PATH``.
 Overrides after ``--`` go to every ``make_teacher.py`` run.
 """
