@@ -1,6 +1,6 @@
 """Where a SAIL gradient step's time goes, and how it grows with the replay and batch size.
 
-    python benchmarks/bench_update.py [--threads 1] [--iters 300] [--scale]
+    python benchmarks/bench_update.py [--threads 1] [--iters 300] [--scale] [--critic-layer-norm]
 
 Pieces of one training frame at the example's cadence (one TD3 step per frame: the critic
 every step, the actor and the targets every second step), at the authors' sizes ([400, 300]
@@ -14,6 +14,9 @@ ReLU nets, batch 256, Hopper dims 12/3), each timed alone (median ms per call):
   ``value_loss``/``actor_loss``, SoftUpdate, fp32) and the fused implementation (fp32 and
   bf16), split into critic step, actor step and target update;
 - one discriminator step (256 + 256 rows, gradient penalty included).
+
+``--critic-layer-norm`` also times the fp32 steps with a LayerNorm after each hidden layer of the
+critic (``network.critic_layer_norm=true``), each against its plain peer of the same run.
 
 ``--scale`` adds the per-step cost (block sample with D reward, on every row and once per
 distinct row, + fused step) and the process's resident memory for replay sizes 1e4, 1e5 and
@@ -69,8 +72,14 @@ def transitions(n: int, episode_len: int = 500) -> TensorDict:
     )
 
 
-def make_update(implementation: str, precision: str) -> TD3Update:
-    """The example's TD3 step: [400, 300] ReLU nets, fused Adam, tau 0.005."""
+def make_update(implementation: str, precision: str, critic_layer_norm: bool = False) -> TD3Update:
+    """The example's TD3 step: [400, 300] ReLU nets, fused Adam, tau 0.005; ``critic_layer_norm``:
+    a LayerNorm after each hidden layer of the critic (``network.critic_layer_norm=true``)."""
+    norm = (
+        {"norm_class": nn.LayerNorm, "norm_kwargs": [{"normalized_shape": 400}, {"normalized_shape": 300}]}
+        if critic_layer_norm
+        else {}
+    )
     torch.manual_seed(0)
     actor = TensorDictSequential(
         TensorDictModule(
@@ -81,7 +90,7 @@ def make_update(implementation: str, precision: str) -> TD3Update:
         TanhModule(["param"], ["action"], spec=SPEC),
     )
     critic = ValueOperator(
-        MLP(in_features=OBS + ACT, out_features=1, num_cells=[400, 300], activation_class=nn.ReLU),
+        MLP(in_features=OBS + ACT, out_features=1, num_cells=[400, 300], activation_class=nn.ReLU, **norm),
         in_keys=["action", "observation"],
     )
     loss = SAILLoss(actor, critic, action_spec=SPEC)
@@ -118,7 +127,7 @@ def buffers(replay_size: int):
     return teacher, agent
 
 
-def pieces(iters: int) -> dict:
+def pieces(iters: int, critic_layer_norm: bool = False) -> dict:
     teacher, agent = buffers(100_000)
     disc = Discriminator(OBS, ACT)
     plain, rewarded = (
@@ -143,9 +152,12 @@ def pieces(iters: int) -> dict:
     for name in list(results):
         if "block" in name:
             results[name] /= 1000
-    for implementation, precision in (("loss", "fp32"), ("fused", "fp32"), ("fused", "bf16")):
-        update = make_update(implementation, precision)
-        tag = f"TD3 step [{implementation}, {precision}]"
+    steps = [("loss", "fp32", False), ("fused", "fp32", False), ("fused", "bf16", False)]
+    if critic_layer_norm:
+        steps += [("loss", "fp32", True), ("fused", "fp32", True)]
+    for implementation, precision, layer_norm in steps:
+        update = make_update(implementation, precision, layer_norm)
+        tag = f"TD3 step [{implementation}, {precision}{', critic LayerNorm' if layer_norm else ''}]"
         critic = timed(lambda i, update=update: update.critic_step(batches[i % 64]), iters)
         actor = timed(lambda i, update=update: update.actor_step(batches[i % 64]), iters)
         targets = timed(lambda i, update=update: update.update_targets(), iters)
@@ -205,16 +217,26 @@ def main():
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--iters", type=int, default=300)
     parser.add_argument("--scale", action="store_true", help="also time replay 1e5/1e6 x batch 256/1024")
+    parser.add_argument(
+        "--critic-layer-norm", action="store_true", help="also time the fp32 TD3 steps with a LayerNorm critic"
+    )
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     print(f"torch {torch.__version__}, threads={args.threads}, iters={args.iters}")
-    results = pieces(args.iters)
+    results = pieces(args.iters, args.critic_layer_norm)
     for name, ms in results.items():
         print(f"{name:70s} {ms:8.3f} ms")
     ref = results["TD3 step [loss, fp32] per frame (critic + (actor + targets) / 2)"]
     for precision in ("fp32", "bf16"):
         fused = results[f"TD3 step [fused, {precision}] per frame (critic + (actor + targets) / 2)"]
         print(f"TD3 step per frame, reference fp32 / fused {precision}: {ref / fused:.2f}x")
+    if args.critic_layer_norm:
+        for implementation in ("loss", "fused"):
+            plain = results[f"TD3 step [{implementation}, fp32] per frame (critic + (actor + targets) / 2)"]
+            normed = results[
+                f"TD3 step [{implementation}, fp32, critic LayerNorm] per frame (critic + (actor + targets) / 2)"
+            ]
+            print(f"TD3 step per frame [{implementation}, fp32], critic LayerNorm / without: {normed / plain:.2f}x")
     if args.scale:
         print(
             "block sample + D reward, ms per step: every row (alpha 0.5) | once per distinct row (alpha 0.5) "

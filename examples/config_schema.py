@@ -315,6 +315,9 @@ class OptimConfig:
 class NetworkConfig:
     actor_cells: list[int] = field(default_factory=lambda: [400, 300])
     critic_cells: list[int] = field(default_factory=lambda: [400, 300])
+    # LayerNorm after each hidden layer of the critic (Linear -> LayerNorm -> activation), as RLPD
+    # (Ball et al. 2023) against Q over-extrapolation when half of each batch is offline data
+    critic_layer_norm: bool = False
     activation: Activation = Activation.relu
     discriminator_cells: list[int] = field(default_factory=lambda: [256, 256])
     discriminator_activation: Activation = Activation.tanh

@@ -309,6 +309,11 @@ def make_agent(cfg: DictConfig, env):
     action_spec = env.action_spec
     act_dim = action_spec.shape[-1]
     activation = _ACTIVATIONS[cfg.network.activation]
+    norm = (
+        {"norm_class": nn.LayerNorm, "norm_kwargs": [{"normalized_shape": cells} for cells in cfg.network.critic_cells]}
+        if cfg.network.critic_layer_norm
+        else {}
+    )
     critic = ValueOperator(
         MLP(
             in_features=obs_dim + act_dim,
@@ -316,6 +321,7 @@ def make_agent(cfg: DictConfig, env):
             num_cells=list(cfg.network.critic_cells),
             activation_class=activation,
             device=cfg.device,
+            **norm,
         ),
         in_keys=["action", "observation"],
     )

@@ -537,6 +537,30 @@ def test_actor_preactivation_coef_reaches_the_loss():
     assert loss.preactivation_coef == 0.001 and loss.preactivation_key == "param"
 
 
+def test_critic_layer_norm_puts_a_layer_norm_after_each_hidden_layer_of_the_critic_alone():
+    """RLPD's critic: Linear -> LayerNorm -> ReLU per hidden layer; the actor is unchanged, and the
+    fused TD3 step takes the norm (checked equal to the loss's own step in test_td3_update.py)."""
+    from torch import nn
+    from torchrl.objectives import SoftUpdate
+    from utils import make_agent, make_discriminator, make_losses, make_optimizers, make_update
+
+    from torchrl_sail import TD3Update, make_sail_env
+
+    cfg = make("network.critic_layer_norm=true")
+    check_config(cfg)
+    env = make_sail_env("Pendulum-v1", max_episode_steps=200)
+    actor, critic, _ = make_agent(cfg, env)
+    layers = list(critic.module)
+    assert [type(layer) for layer in layers] == [nn.Linear, nn.LayerNorm, nn.ReLU] * 2 + [nn.Linear]
+    assert [layer.normalized_shape for layer in layers if isinstance(layer, nn.LayerNorm)] == [(400,), (300,)]
+    assert not any(isinstance(module, nn.LayerNorm) for module in actor.modules())
+    assert not any(isinstance(module, nn.LayerNorm) for module in make_agent(make(), env)[1].modules())
+    loss, *_ = make_losses(cfg, actor, critic, make_discriminator(cfg, env), env.action_spec)
+    optimizers = make_optimizers(cfg, loss, make_discriminator(cfg, env))
+    update = make_update(cfg, loss, optimizers, SoftUpdate(loss, tau=cfg.optim.tau))
+    assert isinstance(update, TD3Update) and update.implementation == "fused"
+
+
 @pytest.mark.parametrize(
     "overrides, normalization",
     [((), "sum"), (("algo=ddpgfd",), "count"), (("algo=ddpgfd", "algo.per.weight_normalization=sum"), "sum")],

@@ -20,25 +20,40 @@ from torchrl.modules import MLP, TanhModule, ValueOperator
 from torchrl.objectives import SoftUpdate, TD3Loss
 from torchrl.objectives.value import TD0Estimator
 
+import torchrl_sail.objectives.td3_update as td3_update
 from torchrl_sail import SAILLoss, TD3Update
 
 OBS, ACT, B = 5, 2, 32
 DEVICES = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
 
 
-def make_loss(spec, *, cls=SAILLoss, device="cpu", activation=nn.ReLU, num_cells=(16, 12), **kwargs):
+def make_loss(spec, *, cls=SAILLoss, device="cpu", activation=nn.ReLU, num_cells=(16, 12), layer_norm=False, **kwargs):
+    """``layer_norm``: ``nn.LayerNorm`` after every hidden Linear of both nets (RLPD's critic), with
+    perturbed affine parameters so that a norm run without them cannot pass."""
+    norm = (
+        {"norm_class": nn.LayerNorm, "norm_kwargs": [{"normalized_shape": cells} for cells in num_cells]}
+        if layer_norm
+        else {}
+    )
     actor = TensorDictSequential(
         TensorDictModule(
-            MLP(in_features=OBS, out_features=ACT, num_cells=list(num_cells), activation_class=activation),
+            MLP(in_features=OBS, out_features=ACT, num_cells=list(num_cells), activation_class=activation, **norm),
             ["observation"],
             ["param"],
         ),
         TanhModule(["param"], ["action"], spec=spec),
     )
     critic = ValueOperator(
-        MLP(in_features=OBS + ACT, out_features=1, num_cells=list(num_cells), activation_class=activation),
+        MLP(in_features=OBS + ACT, out_features=1, num_cells=list(num_cells), activation_class=activation, **norm),
         in_keys=["action", "observation"],
     )
+    if layer_norm:
+        g = torch.Generator().manual_seed(3)
+        with torch.no_grad():
+            for module in (*actor.modules(), *critic.modules()):
+                if isinstance(module, nn.LayerNorm):
+                    module.weight.add_(0.5 * torch.randn(module.weight.shape, generator=g))
+                    module.bias.add_(0.5 * torch.randn(module.bias.shape, generator=g))
     kwargs.setdefault("loss_function", "l2")
     loss = cls(actor, critic, action_spec=spec, **kwargs)
     loss.make_value_estimator(gamma=0.9)
@@ -199,6 +214,24 @@ class TestTD3Update:
 
     def test_fused_equals_loss_smooth_l1(self):
         assert_same(run_both(UNIT, loss_kwargs={"loss_function": "smooth_l1"}))
+
+    @pytest.mark.parametrize("device", DEVICES)
+    def test_fused_equals_loss_layer_norm(self, device):
+        # LayerNorm after each hidden layer of both nets (network.critic_layer_norm puts it in the critic)
+        assert_same(run_both(UNIT, device=device, loss_kwargs={"layer_norm": True}))
+
+    def test_fused_layer_norm_by_hand(self):
+        # the stacked critics' feature-major norm against nn.LayerNorm on each critic alone
+        loss = make_loss(UNIT, layer_norm=True)
+        update = make_update(loss, "fused")
+        batch = make_batch(UNIT, seed=0)
+        x = torch.cat([batch["action"], batch["observation"]], -1)
+        stacked = td3_update._run(update._critic, x).squeeze(-1)
+        assert stacked.shape == (2, B)
+        for i in (0, 1):
+            torch.testing.assert_close(
+                stacked[i], q_value(loss, loss.qvalue_network_params[i], batch["observation"], batch["action"])
+            )
 
     def test_fused_equals_loss_bounds_and_activation(self):
         # TanhModule's affine map onto non-symmetric bounds, and a non-ReLU activation
@@ -482,6 +515,37 @@ class TestTD3Update:
         # bf16 actually ran: the losses differ from fp32 beyond float32 rounding
         assert not torch.equal(m16["loss_qvalue"], m32["loss_qvalue"])
 
+    def test_bf16_layer_norm_critics_run_as_their_modules_under_autocast(self):
+        """A LayerNorm critic's bf16 step rounds as torch's autocast rounds the critic module itself
+        (the norm in float32): each stacked critic's Q and first-layer gradient against its own
+        ``nn.Module`` under autocast, closer than either is to float32 (a norm divides by the
+        features' spread, so bf16's rounding of the products before it shows more than without one)."""
+        loss = make_loss(UNIT, num_cells=(64, 64), layer_norm=True)
+        update = make_update(loss, "fused", precision="bf16")
+        batch = make_batch(UNIT, seed=0)
+        x = torch.cat([batch["action"], batch["observation"]], -1)
+        params = loss.qvalue_network_params.detach().clone().apply(lambda t: t.requires_grad_(True))
+        program = td3_update._mlp_program(loss.qvalue_network.module, params["module"], "critic")
+        with torch.autocast("cpu", dtype=torch.bfloat16):
+            q = td3_update._run(program, x).squeeze(-1)
+        (grad,) = torch.autograd.grad(q.square().sum(), params["module", "0", "weight"])
+        for i in (0, 1):
+            module = copy.deepcopy(loss.qvalue_network.module)
+            params[i]["module"].detach().to_module(module)
+            module.requires_grad_(True)
+            references = {}
+            for name, autocast in (("bf16", True), ("fp32", False)):
+                module.zero_grad()
+                with torch.autocast("cpu", dtype=torch.bfloat16, enabled=autocast):
+                    q_i = module(x).squeeze(-1)
+                q_i.float().square().sum().backward()
+                references[name] = (q_i.float().detach(), module[0].weight.grad.clone())
+            (q16, g16), (_, g32) = references["bf16"], references["fp32"]
+            torch.testing.assert_close(q[i], q16, rtol=1e-2, atol=1e-2)
+            assert (grad[i] - g16).norm() <= 0.01 * g16.norm()
+            assert (grad[i] - g16).norm() < (grad[i] - g32).norm()
+        assert update.precision == "bf16"
+
     def test_bf16_critic_output_not_rounded(self):
         """Under bf16 the critics' last layer runs in float32: Q near 100 is not rounded to bfloat16's 0.5 grid.
 
@@ -570,12 +634,13 @@ class TestTD3Update:
         with pytest.raises(ValueError, match="TD\\(0\\) target"):
             update(make_batch(UNIT, seed=1), update_actor=True)
 
-    def test_compiled_equals_eager(self):
+    @pytest.mark.parametrize("layer_norm", [False, True])
+    def test_compiled_equals_eager(self, layer_norm):
         """torch.compile of the whole step (TorchRL's compile_with_warmup pattern) gives the same step."""
         import torch._inductor.config as inductor_config
 
         torch.manual_seed(0)
-        base = make_loss(UNIT, num_cells=(8,))
+        base = make_loss(UNIT, num_cells=(8,), layer_norm=layer_norm)
         states = []
         for compiled in (False, True):
             loss = copy.deepcopy(base)
@@ -591,8 +656,8 @@ class TestTD3Update:
 
     def test_refuses_unsupported(self):
         loss = make_loss(UNIT)
-        loss.qvalue_network.module.append(nn.LayerNorm(1))
-        with pytest.raises(TypeError, match="LayerNorm at position 5"):
+        loss.qvalue_network.module.append(nn.BatchNorm1d(1))
+        with pytest.raises(TypeError, match="BatchNorm1d at position 5"):
             make_update(loss, "fused")
         make_update(loss, "loss")  # the reference runs any network
         with pytest.raises(ValueError, match="implementation must be 'fused' or 'loss'"):

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from dataclasses import dataclass
 from functools import partial
 from typing import Literal
 
@@ -50,8 +51,26 @@ __all__ = ["TD3Update"]
 _PRECISIONS = {"fp32": None, "bf16": torch.bfloat16}
 
 
+@dataclass(frozen=True)
+class _LayerNorm:
+    """A program's ``nn.LayerNorm`` over the last dimension, bound to its parameters (``None``
+    without an elementwise affine map)."""
+
+    weight: torch.Tensor | None
+    bias: torch.Tensor | None
+    eps: float
+
+    @property
+    def tensors(self) -> tuple:
+        return (self.weight, self.bias)
+
+    def detached_first(self) -> _LayerNorm:
+        return _LayerNorm(*(None if t is None else t.detach()[0] for t in self.tensors), self.eps)
+
+
 def _mlp_program(mlp: nn.Module, params: TensorDictBase, what: str) -> list:
-    """The layers of ``mlp`` bound to ``params``: ``(weight, bias)`` pairs and activations."""
+    """The layers of ``mlp`` bound to ``params``: ``(weight, bias)`` pairs, layer norms
+    (:class:`_LayerNorm`) and activations."""
     if not isinstance(mlp, nn.Sequential):
         raise TypeError(
             f"TD3Update needs the {what} to be an nn.Sequential MLP (e.g. torchrl's MLP), "
@@ -61,18 +80,45 @@ def _mlp_program(mlp: nn.Module, params: TensorDictBase, what: str) -> list:
     for name, layer in mlp.named_children():
         if isinstance(layer, nn.Linear):
             program.append((params[name, "weight"], params[name, "bias"] if layer.bias is not None else None))
+        elif isinstance(layer, nn.LayerNorm) and len(layer.normalized_shape) == 1:
+            affine = layer.elementwise_affine
+            program.append(
+                _LayerNorm(
+                    params[name, "weight"] if affine else None,
+                    params[name, "bias"] if affine and layer.bias is not None else None,
+                    layer.eps,
+                )
+            )
         elif (
             isinstance(layer, DropoutLayer)
             or any(True for _ in layer.parameters(recurse=True))
             or any(True for _ in layer.buffers(recurse=True))
         ):
             raise TypeError(
-                f"TD3Update runs Linear layers and parameter-free activations; the {what} has "
-                f"{type(layer).__name__} at position {name}: use implementation='loss'."
+                f"TD3Update runs Linear layers, LayerNorm over the features and parameter-free activations; "
+                f"the {what} has {type(layer).__name__} at position {name}: use implementation='loss'."
             )
         else:
             program.append(layer)
     return program
+
+
+def _layer_norm(x: torch.Tensor, norm: _LayerNorm, stacked: bool) -> torch.Tensor:
+    """``nn.LayerNorm`` over the features of ``x`` (``[B, F]``, or ``[n, B, F]`` with ``[n, F]``
+    parameters, one per network of a stacked ensemble), in float32 under autocast as torch's
+    autocast runs ``layer_norm``."""
+    with torch.autocast(x.device.type, enabled=False):
+        if not stacked:
+            return F.layer_norm(x.float(), x.shape[-1:], norm.weight, norm.bias, norm.eps)
+        # torch's fused norm, then each network's affine map in one broadcast op
+        h = F.layer_norm(x.float(), x.shape[-1:], eps=norm.eps)
+        weight = None if norm.weight is None else norm.weight.unsqueeze(-2)
+        bias = None if norm.bias is None else norm.bias.unsqueeze(-2)
+        if weight is not None and bias is not None:
+            return torch.addcmul(bias, h, weight)
+        if weight is not None:
+            return h * weight
+        return h if bias is None else h + bias
 
 
 # Activations applied in place to a layer's fresh output: the products' backward reads their
@@ -81,10 +127,14 @@ def _mlp_program(mlp: nn.Module, params: TensorDictBase, what: str) -> list:
 _IN_PLACE = {nn.ReLU: torch.relu_, nn.Tanh: torch.tanh_}
 
 
-def _linear(x: torch.Tensor, weight: torch.Tensor, bias: torch.Tensor | None, stacked: bool) -> torch.Tensor:
+def _linear(
+    x: torch.Tensor, weight: torch.Tensor, bias: torch.Tensor | None, stacked: bool, feature_major: bool
+) -> torch.Tensor:
     if not stacked:
         return F.linear(x, weight, bias)
-    return torch.bmm(weight, x) if bias is None else torch.baddbmm(bias.unsqueeze(-1), weight, x)
+    if feature_major:
+        return torch.bmm(weight, x) if bias is None else torch.baddbmm(bias.unsqueeze(-1), weight, x)
+    return torch.bmm(x, weight.mT) if bias is None else torch.baddbmm(bias.unsqueeze(-2), x, weight.mT)
 
 
 def _run(program: list, x: torch.Tensor) -> torch.Tensor:
@@ -92,7 +142,9 @@ def _run(program: list, x: torch.Tensor) -> torch.Tensor:
 
     Stacked ``[n, out, in]`` parameters give ``[n, B, out]``: every layer is one batched
     product for the whole ensemble, computed feature-major (``W @ h^T``) so that the weight
-    gradients come out contiguous instead of as transposes that autograd would copy.
+    gradients come out contiguous instead of as transposes that autograd would copy; batch-major
+    (``h @ W^T``) where the program has a LayerNorm, which normalizes the last dimension: a
+    feature-major norm costs more in transposes and strided activations than those copies (measured).
 
     The last layer runs in the parameters' own precision even under autocast: it is a thin
     product (``out`` is 1 for a critic), and its output is what the TD target, the min over
@@ -100,25 +152,29 @@ def _run(program: list, x: torch.Tensor) -> torch.Tensor:
     size of SAIL's per-step reward.
     """
     last = max(i for i, layer in enumerate(program) if isinstance(layer, tuple))
+    feature_major = not any(isinstance(layer, _LayerNorm) for layer in program)
     stacked = fresh = False
     for i, layer in enumerate(program):
         if isinstance(layer, tuple):
             weight, bias = layer
             fresh = True
             if weight.dim() == 3 and not stacked:
-                x = x.mT.expand(weight.shape[0], *x.mT.shape)
+                x = x.mT.expand(weight.shape[0], *x.mT.shape) if feature_major else x.expand(weight.shape[0], *x.shape)
                 stacked = True
             if i == last and torch.is_autocast_enabled(x.device.type):
                 with torch.autocast(x.device.type, enabled=False):
-                    x = _linear(x.to(weight.dtype), weight, bias, stacked)
+                    x = _linear(x.to(weight.dtype), weight, bias, stacked, feature_major)
             else:
-                x = _linear(x, weight, bias, stacked)
+                x = _linear(x, weight, bias, stacked, feature_major)
+        elif isinstance(layer, _LayerNorm):
+            x = _layer_norm(x, layer, stacked)
+            fresh = True
         elif fresh and type(layer) in _IN_PLACE:
             x = _IN_PLACE[type(layer)](x)
         else:
             x = layer(x)
             fresh = False
-    return x.mT if stacked else x
+    return x.mT if stacked and feature_major else x
 
 
 def _first_detached(program: list) -> list:
@@ -128,7 +184,11 @@ def _first_detached(program: list) -> list:
     reaches them (the actor loss trains the actor only).
     """
     return [
-        tuple(None if t is None else t.detach()[0] for t in layer) if isinstance(layer, tuple) else layer
+        layer.detached_first()
+        if isinstance(layer, _LayerNorm)
+        else tuple(None if t is None else t.detach()[0] for t in layer)
+        if isinstance(layer, tuple)
+        else layer
         for layer in program
     ]
 
@@ -155,7 +215,9 @@ class TD3Update:
       prioritized weights and ``SAILLoss(mixing="weights")`` act as in the loss. It
       supports what SAIL uses: an actor ``TensorDictSequential(TensorDictModule(MLP),
       TanhModule)``, a critic ``TensorDictModule(MLP)`` (its ``in_keys`` concatenated in
-      order, as :class:`~torchrl.modules.MLP` does), target networks for both, a TD(0)
+      order, as :class:`~torchrl.modules.MLP` does; each MLP of Linear layers,
+      parameter-free activations and ``nn.LayerNorm`` over the features, e.g. RLPD's
+      critic, ``MLP(norm_class=nn.LayerNorm, ...)``), target networks for both, a TD(0)
       value estimator and a :class:`~torchrl.objectives.SoftUpdate`; anything else is
       refused at construction with the reason. A :class:`~torchrl_sail.SAILLoss`'s pre-tanh
       penalty (``preactivation_coef``) reuses the actor output the objective computes.
@@ -414,8 +476,8 @@ class TD3Update:
             tensor
             for program in (self._actor, self._target_actor, self._critic, self._target_critic)
             for layer in program
-            if isinstance(layer, tuple)
-            for tensor in layer
+            if isinstance(layer, (tuple, _LayerNorm))
+            for tensor in (layer.tensors if isinstance(layer, _LayerNorm) else layer)
             if tensor is not None
         ]
         self._device_type = self._bound_tensors[0].device.type
