@@ -43,9 +43,10 @@ def test_plan_fills_the_table_seed_0_first():
         "logit": 7,
         "trusted": 8,
         "average": 9,
-        "ant": 10,
-        "comparison": 11,
-        "table1": 12,
+        "remedies": 10,
+        "ant": 11,
+        "comparison": 12,
+        "table1": 13,
     }
     stages = [order[c.stage] for c in cells]
     assert stages == sorted(stages)
@@ -289,7 +290,19 @@ def test_matrix_records_every_stage_and_label(tmp_path, monkeypatch):
         campaign.subprocess, "run", lambda cmd, **kw: launched.append(cmd) or argparse.Namespace(returncode=0)
     )
     assert campaign.main(["--teachers-dir", str(teachers), "--out", str(tmp_path / "out"), "--jobs", "1"]) == 0
-    never = ("weak", "precision", "preact", "centred", "logit", "trusted", "average", "ant", "comparison", "table1")
+    never = (
+        "weak",
+        "precision",
+        "preact",
+        "centred",
+        "logit",
+        "trusted",
+        "average",
+        "remedies",
+        "ant",
+        "comparison",
+        "table1",
+    )
     default = [c for c in campaign.plan() if c.teacher != "random" and c.stage not in never]
     assert len(launched) == len(default)  # not the weak, precision and remedy stages: never defaults
     main = json.loads((tmp_path / "out" / "main" / "matrix.json").read_text())
@@ -455,6 +468,37 @@ def test_average_stage_tunes_the_averaged_actors_memory_on_tuning_seeds(tmp_path
     assert len(lines) == 8 and f"teacher.path={teachers / campaign.PAPER_TEACHERS['Hopper-v4']}" in lines[0]
     assert "teacher.path=" not in lines[1] and lines[1].endswith(
         f"hydra.run.dir={out / 'average' / 'shipped-average10k' / 'Walker2d-v4' / 'sail' / 'seed100'}"
+    )
+
+
+def test_remedies_stage_tunes_two_remedies_of_the_falls_beside_the_average_stages_runs(tmp_path, capsys):
+    """The critic's LayerNorm and the authors' FIFO ring, each with the candidate, on the average
+    stage's seeds and teachers (its runs train the candidate alone on them: the baseline), seed by seed."""
+    cells = [c for c in campaign.plan() if c.stage == "remedies"]
+    average = [c for c in campaign.plan() if c.stage == "average"]
+    assert len(cells) == 16 and len(set(cells)) == 16
+    assert {(c.env, c.teacher.split("-")[0], c.seed) for c in cells} == {
+        (c.env, c.teacher.split("-")[0], c.seed) for c in average
+    }
+    assert [c.seed for c in cells] == [seed for seed in (100, 101, 102, 103) for _ in range(4)]
+    for cell in cells:
+        remedy = cell.teacher.rsplit("-", 1)[1]
+        assert cell.teacher == f"{'paper' if cell.env == 'Hopper-v4' else 'shipped'}-trusted-{remedy}"
+        assert cell.overrides == (
+            *campaign.TRUSTED,
+            {"ln": "network.critic_layer_norm=true", "fifo": "teacher.eviction=fifo"}[remedy],
+        )
+    teachers = tmp_path / "teachers"
+    teachers.mkdir()
+    (teachers / campaign.PAPER_TEACHERS["Hopper-v4"]).touch()
+    out = tmp_path / "out"
+    args = ["--teachers-dir", str(teachers), "--out", str(out), "--stages", "remedies", "--seeds", "100", "--dry-run"]
+    assert campaign.main(args) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 4 and f"teacher.path={teachers / campaign.PAPER_TEACHERS['Hopper-v4']}" in lines[0]
+    assert "network.critic_layer_norm=true" in lines[0] and "teacher.eviction=fifo" in lines[3]
+    assert "teacher.path=" not in lines[3] and lines[3].endswith(
+        f"hydra.run.dir={out / 'remedies' / 'shipped-trusted-fifo' / 'Walker2d-v4' / 'sail' / 'seed100'}"
     )
 
 
