@@ -127,9 +127,11 @@ AVERAGE_SEEDS = {10_000: (100, 101), 30_000: (102, 103)}
 AVERAGE_TEACHERS = (("Hopper-v4", "paper"), ("Walker2d-v4", "shipped"))
 # Two remedies of the falls, each added to the candidate, tuned on the average stage's seeds and
 # teachers, so that its runs (the candidate's training on the same seeds) are their baseline: the
-# critic's LayerNorm (RLPD) and the SAIL authors' FIFO teacher ring, whose teacher data changes by a
-# smaller share at each promotion than the top-K buffer's (falls follow the threshold's largest
-# rises early in a run: benchmarks/results/hopper_falls/README.md). Labels "<teacher>-trusted-<remedy>".
+# critic's LayerNorm (RLPD) and the SAIL authors' FIFO teacher ring at their capacities (on Hopper,
+# 1e5 transitions, whose teacher data changes by a smaller share at each promotion than the top-K
+# buffer's: falls came more often after the threshold's largest rises early in a run, a tendency,
+# benchmarks/results/hopper_falls/README.md; on Walker2d, 1e4, about the top-K buffer's size, with
+# the oldest rows evicted, not the worst). Labels "<teacher>-trusted-<remedy>".
 REMEDIES = {"ln": ("network.critic_layer_norm=true",), "fifo": ("teacher.eviction=fifo",)}
 REMEDY_SEEDS = (100, 101, 102, 103)
 # The paper's whole comparison with its teachers, seeds 0-2 (its own scale): Table 1's exploration
@@ -454,7 +456,10 @@ def started_first(cells: list[Cell], out: Path) -> list[Cell]:
 
     def began(cell: Cell) -> bool:
         run_dir = run_dir_of(cell, out)
-        return not finished(run_dir) and checkpoint_frames(run_dir) is not None
+        try:
+            return not finished(run_dir) and checkpoint_frames(run_dir) is not None
+        except ValueError:  # an unreadable checkpoint: its run says so when its turn comes, not the queue
+            return False
 
     return sorted(cells, key=lambda cell: not began(cell))  # a stable sort keeps each part's order
 
@@ -484,20 +489,22 @@ def collect(
     stages: list[str] | None = None,
     envs: list[str] | None = None,
     seeds: list[int] | None = None,
+    methods: list[str] | None = None,
 ) -> list[Path]:
     """Copies the report's files of every finished run under ``out`` to ``dest``; returns the runs copied.
 
-    ``stages``, ``envs`` and ``seeds`` (each ``None`` for all) keep only the runs whose folder,
-    ``<stage>/<teacher>/<env>/<method>/seed<seed>``, names them.
+    ``stages``, ``envs``, ``seeds`` and ``methods`` (each ``None`` for all) keep only the runs whose
+    folder, ``<stage>/<teacher>/<env>/<method>/seed<seed>``, names them.
     """
     seed_folders = None if seeds is None else {f"seed{seed}" for seed in seeds}
     runs = []
     for summary in sorted(out.glob("*/*/*/*/*/summary.json")):
         run_dir = summary.parent
-        stage, _, env, _, seed = run_dir.relative_to(out).parts
+        stage, _, env, method, seed = run_dir.relative_to(out).parts
         if (
             (stages is None or stage in stages)
             and (envs is None or env in envs)
+            and (methods is None or method in methods)
             and (seed_folders is None or seed in seed_folders)
             and finished(run_dir)
         ):
@@ -608,7 +615,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     out = args.out.expanduser().resolve()
     if args.collect:
-        for target in collect(out, args.collect, args.stages, args.envs, args.seeds):
+        for target in collect(out, args.collect, args.stages, args.envs, args.seeds, args.methods):
             print(target)
         return 0
     stages = args.stages or DEFAULT_STAGES

@@ -316,7 +316,8 @@ class NetworkConfig:
     actor_cells: list[int] = field(default_factory=lambda: [400, 300])
     critic_cells: list[int] = field(default_factory=lambda: [400, 300])
     # LayerNorm after each hidden layer of the critic (Linear -> LayerNorm -> activation), as RLPD
-    # (Ball et al. 2023) against Q over-extrapolation when half of each batch is offline data
+    # (Ball et al. 2023) against Q over-extrapolation when half of each batch is offline data; with
+    # algo.l2_coef (DDPGfD's weight decay) the decay reaches the norms' gains and biases too
     critic_layer_norm: bool = False
     activation: Activation = Activation.relu
     discriminator_cells: list[int] = field(default_factory=lambda: [256, 256])

@@ -235,9 +235,10 @@ def test_collect_keeps_the_stages_envs_and_seeds_asked_and_refuses_a_summary_alo
         ("scale", "paper", "HalfCheetah-v4", 0),
         ("weak", "weak_swimmer", "Swimmer-v4", 1),
         ("weak", "weak_swimmer", "Swimmer-v4", 2),
+        ("trusted", "paper", "Hopper-v4", 3),
     ]
     for stage, teacher, env, seed in runs:
-        run_dir = out / stage / teacher / env / "sail" / f"seed{seed}"
+        run_dir = out / stage / teacher / env / ("dac" if stage == "trusted" else "sail") / f"seed{seed}"
         run_dir.mkdir(parents=True)
         (run_dir / "logs" / "scalars").mkdir(parents=True)
         (run_dir / "config.yaml").write_text("seed: 0\n")
@@ -248,7 +249,9 @@ def test_collect_keeps_the_stages_envs_and_seeds_asked_and_refuses_a_summary_alo
     assert capsys.readouterr().out.split() == [str(dest / "scale" / "paper" / "Hopper-v4" / "sail" / "seed0")]
     assert campaign.main([*base, "--seeds", "2"]) == 0  # --stages unset: every stage
     assert capsys.readouterr().out.split() == [str(dest / "weak" / "weak_swimmer" / "Swimmer-v4" / "sail" / "seed2")]
-    assert len(campaign.collect(out, dest)) == 4
+    assert campaign.main([*base, "--methods", "dac"]) == 0
+    assert capsys.readouterr().out.split() == [str(dest / "trusted" / "paper" / "Hopper-v4" / "dac" / "seed3")]
+    assert len(campaign.collect(out, dest)) == 5
 
     # a finished run's summary.json copied alone (e.g. to make resume=auto skip the run) is not a run folder
     (out / "weak" / "weak_swimmer" / "Swimmer-v4" / "sail" / "seed1" / "config.yaml").unlink()
@@ -256,6 +259,7 @@ def test_collect_keeps_the_stages_envs_and_seeds_asked_and_refuses_a_summary_alo
         campaign.collect(out, tmp_path / "other")
     assert not (tmp_path / "other").exists()  # checked before anything is copied
     assert len(campaign.collect(out, tmp_path / "other", seeds=[0, 2])) == 3
+    assert len(campaign.collect(out, tmp_path / "other", methods=["sail"], seeds=[0, 2, 3])) == 3
 
 
 def test_collect_keeps_a_results_copy_put_back_as_it_is_and_refuses_one_without_its_curve(tmp_path):
@@ -713,6 +717,11 @@ def test_a_restarted_queue_resumes_its_started_runs_before_it_starts_new_ones(tm
     assert campaign.main(args) == 0
     queued = [re.search(r"hydra.run.dir=(\S+)", line).group(1) for line in capsys.readouterr().out.splitlines()]
     assert queued == [planned[9], *planned[:9], *planned[10:]]
+    # a half-written checkpoint does not stop the queue: that run reports it when its turn comes
+    (started / "checkpoint" / "manifest.json").write_text("{")
+    assert campaign.main(args) == 0
+    queued = [re.search(r"hydra.run.dir=(\S+)", line).group(1) for line in capsys.readouterr().out.splitlines()]
+    assert queued == planned
 
 
 def test_every_planned_run_composes_a_valid_config_and_baselines_keep_their_references(tmp_path):
