@@ -1,0 +1,207 @@
+"""Which remedy of the falls goes on to a confirmation (``docs/results.md``, "What a fall on Hopper
+is"), applied to the committed tuning runs: each remedy's figures against the candidate's on the
+same seeds and teachers, and the choice, or what is still missing.
+
+    python benchmarks/remedy_rule.py benchmarks/results/campaign [--out benchmarks/results/remedies/rule.md]
+
+The runs are ``benchmarks/campaign.py``'s: ``--stages average`` trains the trusted-default candidate
+alone (teacher labels ``<teacher>-average10k`` and ``-average30k``: the memory of an averaged actor
+that is evaluated beside the others and does not change training), ``--stages remedies`` the
+candidate with each remedy (``<teacher>-trusted-<remedy>``, :data:`campaign.REMEDIES`), 300k frames,
+on the tuning seeds :data:`campaign.REMEDY_SEEDS` with the teachers of
+:data:`campaign.AVERAGE_TEACHERS`. Every figure reads the target actor's evaluations (``eval/return``:
+the candidate's ``eval.actor=target``). A remedy is chosen if its target actor's fall share, pooled
+over its runs, is at most :data:`MAX_SHARE_OF_CANDIDATE` of the candidate's on the same (env, teacher,
+seed) cells, every one of its runs passes its teacher, and its last-5 mean per teacher is not below
+the candidate's by more than the candidate's sample standard deviation there. The remedy judged is
+the one with the lowest fall share (the first in :data:`campaign.REMEDIES` on a tie): if it misses
+a criterion, none goes on, as the rule was written before the runs. The choice is ``pending`` until
+every run is finished.
+
+A run is refused, naming its folder, when its config was not run with its setting's values
+(:data:`SETTINGS`), when two runs claim the same cell, or when its evaluations cannot be read
+(:func:`trusted_rule.checked_evals`'s checks).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import statistics
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from aggregate import HEADLINE_EVALS, find_run_folders, load_run  # noqa: E402
+from campaign import AVERAGE_SEEDS, AVERAGE_TEACHERS, REMEDIES, REMEDY_SEEDS  # noqa: E402
+from trusted_rule import EVALUATIONS, FRAMES, Result, config_value, percent, spread  # noqa: E402
+
+from torchrl_sail.harness import write_atomic  # noqa: E402
+
+MAX_SHARE_OF_CANDIDATE = 0.5
+CANDIDATE = {"optim.actor_preactivation_coef": 0.001, "eval.actor": "target", "eval.other_actor": True}
+# what each setting's runs were run with (campaign.TRUSTED, and each remedy's override on top)
+SETTINGS = {
+    "candidate": {**CANDIDATE, "network.critic_layer_norm": False, "teacher.eviction": "topk"},
+    "ln": {**CANDIDATE, "network.critic_layer_norm": True, "teacher.eviction": "topk"},
+    "fifo": {**CANDIDATE, "network.critic_layer_norm": False, "teacher.eviction": "fifo"},
+}
+# a key an average-stage run's config lacks (it predates the key) was at this value
+BEFORE_THE_KEY = {"network.critic_layer_norm": False}
+
+
+def setting_of(label: str) -> tuple[str, str] | None:
+    """``(setting, teacher)`` of a teacher label, e.g. ``paper-trusted-ln`` -> ``("ln", "paper")``, or None."""
+    for memory in AVERAGE_SEEDS:
+        if label.endswith(f"-average{memory // 1000}k"):
+            return "candidate", label.removesuffix(f"-average{memory // 1000}k")
+    for name in REMEDIES:
+        if label.endswith(f"-trusted-{name}"):
+            return name, label.removesuffix(f"-trusted-{name}")
+    return None
+
+
+def checked(run, setting: str) -> list[tuple[int, float]]:
+    """The target actor's evaluations of ``run``, after checking its setting and that they can be read."""
+    for key, expected in {**SETTINGS[setting], **EVALUATIONS}.items():
+        value = config_value(run.config, key)
+        value = BEFORE_THE_KEY.get(key) if value is None and key in BEFORE_THE_KEY else value
+        if value != expected:
+            raise ValueError(
+                f"{run.folder}: counted as a {setting} run, but its config has {key}={value!r} "
+                f"where the {setting} setting has {expected!r}"
+            )
+    if run.teacher_return is None or not math.isfinite(run.teacher_return):
+        raise ValueError(f"{run.folder / 'summary.json'}: teacher_return is {run.teacher_return!r}, not a number")
+    if len(run.curve) < HEADLINE_EVALS or not all(math.isfinite(value) for _, value in run.curve):
+        raise ValueError(f"{run.folder}: eval/return has fewer than {HEADLINE_EVALS} finite evaluations")
+    return run.curve
+
+
+def tuning_runs(roots: list[Path]) -> dict[str, dict[tuple[str, str, int], Result]]:
+    """Every finished 300k tuning run, by setting and (env, teacher, seed)."""
+    found = {name: {} for name in SETTINGS}
+    folders = {}
+    cells = {(env, teacher) for env, teacher in AVERAGE_TEACHERS}
+    for folder in find_run_folders(roots):
+        run = load_run(folder)
+        claimed = setting_of(run.teacher)
+        total = (run.config.get("collector") or {}).get("total_frames")
+        if claimed is None or run.problem is not None or total != FRAMES or run.method != "sail":
+            continue
+        setting, teacher = claimed
+        key = (run.env, teacher, run.seed)
+        if key[:2] not in cells or run.seed not in REMEDY_SEEDS:
+            continue
+        if (setting, key) in folders:
+            raise ValueError(f"two {setting} runs of {key}: {folders[setting, key]} and {folder}")
+        folders[setting, key] = folder
+        found[setting][key] = Result(*key, run.teacher_return, checked(run, setting))
+    return found
+
+
+def needed() -> list[tuple[str, str, int]]:
+    return [(env, teacher, seed) for env, teacher in AVERAGE_TEACHERS for seed in REMEDY_SEEDS]
+
+
+def pooled(results: dict) -> tuple[int, int]:
+    counts = [results[key].falls for key in needed()]
+    return sum(f for f, _ in counts), sum(n for _, n in counts)
+
+
+def table(found: dict) -> list[str]:
+    lines = [
+        "| env | teacher | setting | seeds | passed teacher | last-5 (target actor) | fall share (target actor) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for env, teacher in AVERAGE_TEACHERS:
+        for name, results in found.items():
+            runs = [results[env, teacher, seed] for seed in REMEDY_SEEDS if (env, teacher, seed) in results]
+            falls = [run.falls for run in runs]
+            shown = f"{teacher} ({runs[0].teacher_return:.1f})" if runs else teacher
+            share = percent(sum(f for f, _ in falls), sum(n for _, n in falls)) if runs else "-"
+            lines.append(
+                f"| {env} | {shown} | {name} | {len(runs)} | {sum(run.passed for run in runs)} "
+                f"| {spread([run.last5 for run in runs])} | {share} |"
+            )
+    return [*lines, ""]
+
+
+def judge(found: dict, remedy: str) -> tuple[bool | None, list[str]]:
+    """Whether ``remedy`` meets the three criteria (None: runs missing), and the lines that say why."""
+    missing = [key for name in ("candidate", remedy) for key in needed() if key not in found[name]]
+    if missing:
+        return None, [f"- {remedy}: pending, {len(missing)} of its and the candidate's runs missing."]
+    ours, theirs = pooled(found[remedy]), pooled(found["candidate"])
+    share = ours[0] / ours[1] if ours[1] else math.nan
+    limit = MAX_SHARE_OF_CANDIDATE * theirs[0] / theirs[1] if theirs[1] else math.nan
+    criteria = [
+        (
+            share <= limit,
+            f"fall share {percent(*ours)}, at most {MAX_SHARE_OF_CANDIDATE:g} of the candidate's "
+            f"{percent(*theirs)}, {100 * limit:.1f}%",
+        ),
+        (
+            all(found[remedy][key].passed for key in needed()),
+            f"runs passing their teacher: {sum(found[remedy][key].passed for key in needed())} of {len(needed())}",
+        ),
+    ]
+    for env, teacher in AVERAGE_TEACHERS:
+        mine = statistics.fmean(found[remedy][env, teacher, seed].last5 for seed in REMEDY_SEEDS)
+        base = [found["candidate"][env, teacher, seed].last5 for seed in REMEDY_SEEDS]
+        floor = statistics.fmean(base) - statistics.stdev(base)
+        criteria.append(
+            (
+                mine >= floor,
+                f"{env} ({teacher} teacher) last-5 {mine:.1f}, not below the candidate's mean minus its std, "
+                f"{floor:.1f}",
+            )
+        )
+    lines = [f"- {remedy}:"] + [f"  - {'met' if met else 'missed'}: {text}" for met, text in criteria]
+    return all(met for met, _ in criteria), lines
+
+
+def report(roots: list[Path]) -> str:
+    found = tuning_runs(roots)
+    verdicts = {name: judge(found, name) for name in REMEDIES}
+    lines = [
+        "## Remedies of the falls on their tuning runs",
+        "",
+        f"Written by `benchmarks/remedy_rule.py`: 300k frames, seeds {REMEDY_SEEDS[0]}-{REMEDY_SEEDS[-1]}; runs "
+        "found: " + ", ".join(f"{name} {len(results)}" for name, results in found.items()) + ".",
+        "",
+        *table(found),
+        *(line for _, lines in verdicts.values() for line in lines),
+        "",
+    ]
+    if any(met is None for met, _ in verdicts.values()):
+        choice = "pending (the choice waits for every run)"
+    else:
+
+        def share(name: str) -> float:
+            falls, counted = pooled(found[name])
+            return falls / counted if counted else math.inf
+
+        lowest = min(REMEDIES, key=share)
+        choice = (
+            f"{lowest} (the lowest fall share) goes on to a confirmation"
+            if verdicts[lowest][0]
+            else f"none: {lowest}, the lowest fall share, misses a criterion"
+        )
+    return "\n".join([*lines, f"**Choice: {choice}.**"])
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("roots", nargs="+", type=Path, help="results folders (e.g. benchmarks/results/campaign)")
+    parser.add_argument("--out", type=Path, help="also write the report to this Markdown file")
+    args = parser.parse_args(argv)
+    text = report(args.roots)
+    print(text)
+    if args.out:
+        write_atomic(args.out, text + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
