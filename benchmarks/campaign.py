@@ -20,7 +20,9 @@ paper's teachers, ``--stages centred`` SAIL with its reward centred at D = 1/2
 (``algo.reward.shift=-log 2``; teacher labels ``<teacher>-centred``), and ``--stages logit`` SAIL with
 D's logit (``algo.reward.kind=airl``; ``<teacher>-logit``) on Swimmer and HalfCheetah, none a default.
 ``--stages trusted`` is the trusted-default confirmation, ``--stages average`` tunes an averaged
-actor (``eval.average_frames``) on tuning seeds 100-103, ``--stages remedies`` two remedies of the
+actor (``eval.average_frames``) on tuning seeds 100-103, ``--stages hold`` reruns its Hopper runs
+with the teacher buffer held after its first refill (``algo.max_promoted=10``, 200k frames; labels
+``<teacher>-hold``), ``--stages remedies`` two remedies of the
 falls with the candidate on the same seeds and teachers (``network.critic_layer_norm=true``,
 ``teacher.eviction=fifo``; labels ``<teacher>-trusted-ln``, ``-fifo``); after the confirmation,
 with the default it decides,
@@ -134,6 +136,13 @@ AVERAGE_TEACHERS = (("Hopper-v4", "paper"), ("Walker2d-v4", "shipped"))
 # the oldest rows evicted, not the worst). Labels "<teacher>-trusted-<remedy>".
 REMEDIES = {"ln": ("network.critic_layer_norm=true",), "fifo": ("teacher.eviction=fifo",)}
 REMEDY_SEEDS = (100, 101, 102, 103)
+# Whether the teacher buffer's change causes the falls: the average stage's Hopper runs again, with
+# promotions stopped at the teacher buffer's first refill (algo.max_promoted = K = 10; C first rises
+# once K agent trajectories are in), so that C and the teacher data hold from there while the
+# average stage's runs go on raising them. Both train alike up to the tenth promotion (the logs show
+# it); 200k frames, where the falls came. Labels "<average stage's label>-hold".
+HOLD = ("algo.max_promoted=10",)
+HOLD_FRAMES = 200_000
 # The paper's whole comparison with its teachers, seeds 0-2 (its own scale): Table 1's exploration
 # variants (Curiosity, Entropy) and Figure 2's baselines on the four envs, Figure 3's on-policy D and
 # Figure 4's ablations on Hopper and HalfCheetah, at 300k frames; SAIL at Table 1's 1M frames.
@@ -318,6 +327,11 @@ def plan() -> list[Cell]:
             for memory, seed in zip(AVERAGE_SEEDS, pair, strict=True)
             for env, label in AVERAGE_TEACHERS
         ]
+    cells += [
+        Cell("hold", c.env, c.method, c.seed, HOLD_FRAMES, f"{c.teacher}-hold", (*c.overrides, *HOLD))
+        for c in cells
+        if c.stage == "average" and c.env == "Hopper-v4"
+    ]
     for seed in REMEDY_SEEDS:
         cells += [
             Cell("remedies", env, "sail", seed, 300_000, f"{label}-trusted-{name}", (*TRUSTED, *overrides))
@@ -576,6 +590,7 @@ def main(argv: list[str] | None = None) -> int:
             "logit",
             "trusted",
             "average",
+            "hold",
             "remedies",
             "ant",
             "comparison",
@@ -585,8 +600,9 @@ def main(argv: list[str] | None = None) -> int:
         "all); weak (SAIL with weak teachers), precision (fp32 against bf16: it needs bf16 hardware), preact "
         "(SAIL with the actor's pre-tanh penalty), centred (SAIL with its reward centred at D = 1/2) and logit "
         "(SAIL with D's logit), trusted (the trusted-default confirmation), average (an averaged actor's "
-        "tuning), remedies (two remedies of the falls, tuned), ant (SAIL and DAC on Ant-v4), comparison (the "
-        "paper's other rows) and table1 (SAIL at 1M) are never defaults",
+        "tuning), hold (the teacher buffer held at its first refill), remedies (two remedies of the falls, "
+        "tuned), ant (SAIL and DAC on Ant-v4), comparison (the paper's other rows) and table1 (SAIL at 1M) are "
+        "never defaults",
     )
     parser.add_argument(
         "--envs",

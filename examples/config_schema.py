@@ -212,6 +212,9 @@ class AlgoConfig:
     # (examples/gail.py) | bc: behaviour cloning, offline (examples/bc.py)
     learner: Learner = Learner.td3
     adaptive: bool = True  # promote agent trajectories with r_e > C into the teacher buffer
+    # promotions stop once this many agent trajectories were promoted (null: never), so that C and
+    # the teacher buffer hold from there: whether their change causes the falls (campaign stage hold)
+    max_promoted: int | None = None
     alpha: AlphaConfig = field(default_factory=AlphaConfig)
     # replay: all of R_B (off-policy D) | recent: the last `recent_window` transitions
     discriminator_agent_data: AgentData = AgentData.replay
@@ -715,6 +718,12 @@ def _check_algo(cfg: DictConfig) -> None:
                 a.absorbing_state,
                 not (a.absorbing_state and a.adaptive),
                 "absorbing states need a fixed teacher (algo.adaptive=false): promotion reads unrewritten trajectories",
+            ),
+            (
+                "algo.max_promoted",
+                a.max_promoted,
+                a.max_promoted is None or (a.adaptive and a.max_promoted > 0),
+                "promotions stop once this many trajectories were promoted: set it > 0, with algo.adaptive=true",
             ),
         ]
     )

@@ -86,18 +86,20 @@ def make_transition_store(cfg: DictConfig, replay, recent, action_spec) -> Trans
 
 class TeacherUpdate:
     """Algorithm 1's teacher update: every finished trajectory with ``r_e > C`` joins the teacher
-    buffer (``adaptive``; the no-adaptation ablation keeps its demonstrations), then alpha follows
+    buffer (``adaptive``; the no-adaptation ablation keeps its demonstrations) until ``max_promoted``
+    trajectories were promoted (``None``: no limit; a batch may promote several), then alpha follows
     the promotions (``alpha_scheduler.step``).
 
     Called with a batch and the frame count after it; returns alpha for the batch's TD3 block and
     ``{"alpha_switch_frame": frames}`` at the batch where alpha changed (else ``{}``).
     """
 
-    def __init__(self, teacher, alpha_scheduler, *, adaptive: bool) -> None:
+    def __init__(self, teacher, alpha_scheduler, *, adaptive: bool, max_promoted: int | None = None) -> None:
         self.teacher, self.alpha_scheduler, self.adaptive = teacher, alpha_scheduler, adaptive
+        self.max_promoted = max_promoted
 
     def __call__(self, data, frames: int) -> tuple[float, dict]:
-        if self.adaptive:
+        if self.adaptive and (self.max_promoted is None or self.teacher.writer.num_promoted < self.max_promoted):
             self.teacher.extend(data)
         before = self.alpha_scheduler.alpha
         alpha = self.alpha_scheduler.step(frames=frames, num_promoted=self.teacher.writer.num_promoted)

@@ -156,7 +156,9 @@ def main(cfg):  # noqa: F821
     loggers = make_loggers(cfg, run_dir, run["loggers"])
 
     # --- Algorithm 1's steps
-    update_teacher = TeacherUpdate(teacher, alpha_scheduler, adaptive=cfg.algo.adaptive)
+    update_teacher = TeacherUpdate(
+        teacher, alpha_scheduler, adaptive=cfg.algo.adaptive, max_promoted=cfg.algo.max_promoted
+    )
     evaluations = make_evaluations(
         cfg, eval_envs, actor, actors, run, teacher_return, loggers, run_dir, best_evaluated=best_evaluated
     )

@@ -43,10 +43,11 @@ def test_plan_fills_the_table_seed_0_first():
         "logit": 7,
         "trusted": 8,
         "average": 9,
-        "remedies": 10,
-        "ant": 11,
-        "comparison": 12,
-        "table1": 13,
+        "hold": 10,
+        "remedies": 11,
+        "ant": 12,
+        "comparison": 13,
+        "table1": 14,
     }
     stages = [order[c.stage] for c in cells]
     assert stages == sorted(stages)
@@ -302,6 +303,7 @@ def test_matrix_records_every_stage_and_label(tmp_path, monkeypatch):
         "logit",
         "trusted",
         "average",
+        "hold",
         "remedies",
         "ant",
         "comparison",
@@ -504,6 +506,20 @@ def test_remedies_stage_tunes_two_remedies_of_the_falls_beside_the_average_stage
     assert "teacher.path=" not in lines[3] and lines[3].endswith(
         f"hydra.run.dir={out / 'remedies' / 'shipped-trusted-fifo' / 'Walker2d-v4' / 'sail' / 'seed100'}"
     )
+
+
+def test_hold_stage_reruns_the_average_stages_hopper_runs_with_the_teacher_buffer_held():
+    """The same cells as the average stage's Hopper runs (their seeds, teacher and overrides: the same
+    training up to the tenth promotion) plus algo.max_promoted=10, at 200k frames."""
+    plan = campaign.plan()
+    cells = [c for c in plan if c.stage == "hold"]
+    average = {c.seed: c for c in plan if c.stage == "average" and c.env == "Hopper-v4"}
+    assert sorted(c.seed for c in cells) == sorted(average) == [100, 101, 102, 103]
+    for cell in cells:
+        base = average[cell.seed]
+        assert (cell.env, cell.method, cell.frames) == ("Hopper-v4", "sail", 200_000)
+        assert cell.teacher == f"{base.teacher}-hold" and cell.teacher.startswith("paper-average")
+        assert cell.overrides == (*base.overrides, "algo.max_promoted=10")
 
 
 def test_status_counts_done_started_and_waiting_runs_and_refuses_an_unreadable_checkpoint(tmp_path, capsys):

@@ -156,6 +156,8 @@ def test_optional_blocks_are_typed_when_set():
         (["resume=maybe"], "config resume='maybe': use true, false or auto"),
         (["eval.video_every_frames=-1"], "eval.video_every_frames=-1: must be >= 0 (0 disables)"),
         (["algo=dac", "algo.adaptive=true"], "absorbing states need a fixed teacher"),
+        (["algo.max_promoted=0"], "algo.max_promoted=0: promotions stop once this many trajectories"),
+        (["algo=sail_no_adapt", "algo.max_promoted=10"], "set it > 0, with algo.adaptive=true"),
         (["algo=sail_sac", "optim.precision=bf16"], "bf16 is TD3's fused step only"),
         (["optim.cudagraphs=true"], "config optim.cudagraphs=True: CUDA graphs replay TD3's fused step on a GPU"),
         (["algo.learner=ppo"], "algo.learner=ppo needs the PPO settings"),

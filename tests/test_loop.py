@@ -127,6 +127,20 @@ def test_teacher_update_without_adaptation_leaves_the_teacher_alone():
     assert update(None, 1000) == (0.5, {}) and teacher.calls == 0
 
 
+def test_teacher_update_stops_promoting_at_its_count():
+    offered = []  # each batch offered: the number of trajectories it promotes
+    writer = SimpleNamespace(num_promoted=0)
+    teacher = SimpleNamespace(
+        writer=writer, extend=lambda n: (offered.append(n), setattr(writer, "num_promoted", writer.num_promoted + n))
+    )
+    update = loop.TeacherUpdate(teacher, AlphaScheduler(SimpleNamespace(alpha=1.0)), adaptive=True, max_promoted=3)
+    assert update(0, 500) == (0.5, {})
+    assert update(2, 1000) == (0.0, {"alpha_switch_frame": 1000})
+    update(2, 1500)  # 2 < 3: offered (a batch may promote past the count)
+    update(5, 2000)  # 4 >= 3: held
+    assert offered == [0, 2, 2] and writer.num_promoted == 4
+
+
 def test_finished_episodes_feeds_the_best_policy_and_logs_the_means():
     seen = []
     best = SimpleNamespace(observe=lambda returns, before, frames: seen.append((returns.tolist(), before, frames)))

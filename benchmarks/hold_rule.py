@@ -1,0 +1,243 @@
+"""Whether the teacher buffer's change causes the falls (``docs/results.md``, "What a fall on Hopper
+is"): the runs that held it after its first refill against the same seeds' runs that went on
+raising it, read by the rule written before the runs.
+
+    python benchmarks/hold_rule.py benchmarks/results/campaign [--out benchmarks/results/hold/rule.md]
+
+The runs are ``benchmarks/campaign.py``'s: ``--stages average`` trains the trusted-default candidate
+with the paper's Hopper teacher on seeds 100-103 (teacher labels ``paper-average10k`` and
+``paper-average30k``), ``--stages hold`` the same cells with ``algo.max_promoted=10`` (labels
+``<the average run's label>-hold``, 200k frames): promotions stop once 10 agent trajectories are in
+the teacher buffer, the top-K buffer's first refill, before which its threshold C cannot rise. Per
+seed the hold frame is the first logged frame at which the held run's ``teacher/num_promoted``
+reached 10; up to there both runs train alike, which their evaluations show (the report says where
+a pair first differs, if it does). The window is the evaluations after the hold frame, up to 200k
+frames, of each run. In it, per actor (the target actor, shipped by the candidate, decides; the
+online actor is reported beside it):
+
+- a fall is an evaluation below the teacher's return after the run's first pass (the fall share's
+  own definition, :func:`torchrl_sail.harness.fall_share`);
+- a drop is an evaluation below half of the best earlier evaluation of the same actor in the same
+  run: a held buffer keeps C near the teacher's own level, so a held run may stay close above its
+  teacher, and falls below the teacher, counted alone, would favour the runs whose C rose.
+
+The reading, pooled over the seeds: the teacher buffer's change **causes** falls if the held runs'
+drop share (target actor) is at most :data:`MAX_SHARE_OF_BASELINE` of the other runs' and those
+had at least :data:`MIN_BASELINE_DROPS` drops; it is **not shown** to if the held runs' drop share
+is at least the other runs'; **inconclusive** between the two. ``pending`` until every run of both
+stages is finished. A run is refused, naming its folder, when its config was not run with its
+stage's settings or when two runs claim one seed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from aggregate import find_run_folders, load_run  # noqa: E402
+from campaign import AVERAGE_SEEDS, HOLD_FRAMES  # noqa: E402
+from trusted_rule import config_value, percent  # noqa: E402
+
+from torchrl_sail.harness import read_scalar, write_atomic  # noqa: E402
+
+MAX_PROMOTED = 10
+MAX_SHARE_OF_BASELINE = 0.5
+MIN_BASELINE_DROPS = 4
+ENV = "Hopper-v4"
+SEEDS = tuple(seed for seeds in AVERAGE_SEEDS.values() for seed in seeds)
+CANDIDATE = {"optim.actor_preactivation_coef": 0.001, "eval.actor": "target", "eval.other_actor": True}
+ACTORS = {"target": "eval/return", "online": "eval/return_online"}  # the candidate evaluates the target actor
+
+
+@dataclass
+class Arm:
+    """One run of a pair: its folder, teacher return, evaluations per actor, and its logged C and promotions."""
+
+    folder: Path
+    teacher_return: float
+    evals: dict[str, list[tuple[int, float]]]
+    threshold: list[tuple[int, float]]
+    promoted: list[tuple[int, float]]
+
+
+def label_of(teacher: str) -> tuple[str, int] | None:
+    """``("baseline"|"hold", memory)`` of a teacher label, e.g. ``paper-average10k-hold`` -> ``("hold", 10000)``."""
+    for memory in AVERAGE_SEEDS:
+        base = f"paper-average{memory // 1000}k"
+        if teacher == base:
+            return "baseline", memory
+        if teacher == f"{base}-hold":
+            return "hold", memory
+    return None
+
+
+def arm_of(run, arm: str) -> Arm:
+    expected = {**CANDIDATE, "algo.max_promoted": MAX_PROMOTED if arm == "hold" else None}
+    for key, value in expected.items():
+        if config_value(run.config, key) != value:
+            raise ValueError(
+                f"{run.folder}: counted as a {arm} run, but its config has {key}={config_value(run.config, key)!r} "
+                f"where the {arm} runs have {value!r}"
+            )
+    evals = {actor: sorted(dict(read_scalar(run.folder, tag)).items()) for actor, tag in ACTORS.items()}
+    for actor, curve in evals.items():
+        if not curve or not all(math.isfinite(value) for _, value in curve):
+            raise ValueError(f"{run.folder}: no finite {ACTORS[actor]} evaluations")
+    return Arm(
+        run.folder,
+        float(run.teacher_return),
+        evals,
+        read_scalar(run.folder, "teacher/threshold"),
+        read_scalar(run.folder, "teacher/num_promoted"),
+    )
+
+
+def pairs(roots: list[Path]) -> dict[int, dict[str, Arm]]:
+    """The finished runs of both stages by seed: ``{seed: {"baseline": Arm, "hold": Arm}}`` (either may lack)."""
+    found: dict[int, dict[str, Arm]] = {}
+    for folder in find_run_folders(roots):
+        run = load_run(folder)
+        claimed = label_of(run.teacher)
+        if claimed is None or run.env != ENV or run.method != "sail" or run.problem is not None:
+            continue
+        arm, memory = claimed
+        if run.seed not in AVERAGE_SEEDS[memory]:
+            continue
+        if arm in found.get(run.seed, {}):
+            raise ValueError(f"two {arm} runs of seed {run.seed}: {found[run.seed][arm].folder} and {folder}")
+        found.setdefault(run.seed, {})[arm] = arm_of(run, arm)
+    return found
+
+
+def hold_frame(held: Arm) -> int | None:
+    """The first logged frame at which the held run had promoted :data:`MAX_PROMOTED` trajectories."""
+    return next((frames for frames, value in held.promoted if value >= MAX_PROMOTED), None)
+
+
+def value_at(series: list[tuple[int, float]], frames: int) -> float | None:
+    """The last logged value at or before ``frames``."""
+    values = [value for at, value in series if at <= frames]
+    return values[-1] if values else None
+
+
+def first_difference(a: list[tuple[int, float]], b: list[tuple[int, float]], until: int) -> int | None:
+    """The first evaluation frame up to ``until`` where the two curves differ (None: identical there)."""
+    other = dict(b)
+    return next((frames for frames, value in a if frames <= until and other.get(frames) != value), None)
+
+
+def window_counts(curve: list[tuple[int, float]], teacher: float, after: int) -> dict[str, int]:
+    """Evaluations in (``after``, :data:`HOLD_FRAMES`], falls among those after the first pass, and drops."""
+    passed_at = next((frames for frames, value in curve if value > teacher), None)
+    counts = {"evaluations": 0, "counted": 0, "falls": 0, "drops": 0}
+    best = -math.inf
+    for frames, value in curve:
+        if after < frames <= HOLD_FRAMES:
+            counts["evaluations"] += 1
+            counts["drops"] += value < best / 2
+            if passed_at is not None and frames > passed_at:
+                counts["counted"] += 1
+                counts["falls"] += value < teacher
+        best = max(best, value)
+    return counts
+
+
+def report(roots: list[Path]) -> str:
+    found = pairs(roots)
+    lines = [
+        "## The teacher buffer held after its first refill",
+        "",
+        f"Written by `benchmarks/hold_rule.py`: {ENV}, the paper's teacher, the trusted-default candidate, seeds "
+        f"{SEEDS[0]}-{SEEDS[-1]}; held runs stop promoting at {MAX_PROMOTED} promoted trajectories "
+        f"(`algo.max_promoted={MAX_PROMOTED}`), their pairs go on. Window: each run's evaluations after the hold "
+        f"frame, up to {HOLD_FRAMES // 1000}k. A fall: below the teacher after the run's first pass; a drop: below "
+        "half of the actor's best earlier evaluation.",
+        "",
+        "| seed | hold frame | same training up to it | C at the hold, at the end (held / other) "
+        "| target actor falls (held / other) | target actor drops (held / other) "
+        "| online actor falls (held / other) | online actor drops (held / other) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    pooled = {
+        (arm, actor, kind): [0, 0] for arm in ("hold", "baseline") for actor in ACTORS for kind in ("falls", "drops")
+    }
+    missing = []
+    for seed in SEEDS:
+        pair = found.get(seed, {})
+        if set(pair) != {"hold", "baseline"}:
+            missing += [f"seed {seed} {arm}" for arm in ("hold", "baseline") if arm not in pair]
+            continue
+        held, other = pair["hold"], pair["baseline"]
+        at = hold_frame(held)
+        if at is None:
+            lines.append(
+                f"| {seed} | never: {MAX_PROMOTED} trajectories not promoted by {HOLD_FRAMES // 1000}k | | | | | | |"
+            )
+            continue
+        differs = first_difference(held.evals["target"], other.evals["target"], at)
+        same = "yes" if differs is None else f"no: first differs at {differs // 1000}k"
+        c = f"{value_at(held.threshold, at):.0f} / {value_at(other.threshold, at):.0f}, "
+        c += f"{value_at(held.threshold, HOLD_FRAMES):.0f} / {value_at(other.threshold, HOLD_FRAMES):.0f}"
+        cells = []
+        for actor in ACTORS:
+            counts = {arm: window_counts(run.evals[actor], run.teacher_return, at) for arm, run in pair.items()}
+            for kind, total in (("falls", "counted"), ("drops", "evaluations")):
+                for arm in ("hold", "baseline"):
+                    pooled[arm, actor, kind][0] += counts[arm][kind]
+                    pooled[arm, actor, kind][1] += counts[arm][total]
+                held, other = counts["hold"], counts["baseline"]
+                cells.append(f"{held[kind]}/{held[total]} / {other[kind]}/{other[total]}")
+        lines.append(f"| {seed} | {at // 1000}k | {same} | {c} | " + " | ".join(cells) + " |")
+    lines.append(
+        "| pooled | | | | "
+        + " | ".join(
+            f"{percent(*pooled['hold', actor, kind])} / {percent(*pooled['baseline', actor, kind])}"
+            for actor in ACTORS
+            for kind in ("falls", "drops")
+        )
+        + " |"
+    )
+    return "\n".join([*lines, "", f"**Reading: {reading(pooled, missing)}.**"])
+
+
+def reading(pooled: dict, missing: list[str]) -> str:
+    if missing:
+        return f"pending ({len(missing)} runs missing: {', '.join(missing)})"
+    (held, held_n), (other, other_n) = pooled["hold", "target", "drops"], pooled["baseline", "target", "drops"]
+    held_share = held / held_n if held_n else math.nan
+    other_share = other / other_n if other_n else math.nan
+    if other >= MIN_BASELINE_DROPS and held_share <= MAX_SHARE_OF_BASELINE * other_share:
+        return (
+            f"the teacher buffer's change causes falls: the held runs' target actor dropped in {percent(held, held_n)} "
+            f"of their evaluations, at most {MAX_SHARE_OF_BASELINE:g} of the other runs' {percent(other, other_n)}"
+        )
+    if held_share >= other_share:
+        return (
+            f"not shown: the held runs' target actor dropped in {percent(held, held_n)} of their evaluations, "
+            f"not fewer than the other runs' {percent(other, other_n)}"
+        )
+    return (
+        f"inconclusive: the held runs' target actor dropped in {percent(held, held_n)} of their evaluations "
+        f"against the other runs' {percent(other, other_n)} (a cause needs at most {MAX_SHARE_OF_BASELINE:g} of "
+        f"it, with at least {MIN_BASELINE_DROPS} drops there)"
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("roots", nargs="+", type=Path, help="results folders (e.g. benchmarks/results/campaign)")
+    parser.add_argument("--out", type=Path, help="also write the report to this Markdown file")
+    args = parser.parse_args(argv)
+    text = report(args.roots)
+    print(text)
+    if args.out:
+        write_atomic(args.out, text + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
