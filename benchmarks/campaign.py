@@ -22,7 +22,7 @@ D's logit (``algo.reward.kind=airl``; ``<teacher>-logit``) on Swimmer and HalfCh
 ``--stages trusted`` is the trusted-default confirmation, ``--stages average`` tunes an averaged
 actor (``eval.average_frames``) on tuning seeds 100-103, ``--stages hold`` reruns its Hopper runs
 with the teacher buffer held after its first refill (``algo.max_promoted=10``, 200k frames; labels
-``<teacher>-hold``), ``--stages remedies`` two remedies of the
+``paper-average10k-hold``, ``paper-average30k-hold``), ``--stages remedies`` two remedies of the
 falls with the candidate on the same seeds and teachers (``network.critic_layer_norm=true``,
 ``teacher.eviction=fifo``; labels ``<teacher>-trusted-ln``, ``-fifo``); after the confirmation,
 with the default it decides,
@@ -137,10 +137,12 @@ AVERAGE_TEACHERS = (("Hopper-v4", "paper"), ("Walker2d-v4", "shipped"))
 REMEDIES = {"ln": ("network.critic_layer_norm=true",), "fifo": ("teacher.eviction=fifo",)}
 REMEDY_SEEDS = (100, 101, 102, 103)
 # Whether the teacher buffer's change causes the falls: the average stage's Hopper runs again, with
-# promotions stopped at the teacher buffer's first refill (algo.max_promoted = K = 10; C first rises
-# once K agent trajectories are in), so that C and the teacher data hold from there while the
-# average stage's runs go on raising them. Both train alike up to the tenth promotion (the logs show
-# it); 200k frames, where the falls came. Labels "<average stage's label>-hold".
+# promotions stopped at the teacher buffer's first refill (algo.max_promoted = K = 10: with the
+# paper's one-episode teacher, C first rises when the tenth agent trajectory evicts the
+# demonstration), so that C and the teacher data hold from there while the average stage's runs go
+# on raising them. On one commit and machine, both train alike until the held run's pair promotes
+# more (benchmarks/hold_rule.py checks it); 200k frames, where the falls came. Labels
+# "<average stage's label>-hold".
 HOLD = ("algo.max_promoted=10",)
 HOLD_FRAMES = 200_000
 # The paper's whole comparison with its teachers, seeds 0-2 (its own scale): Table 1's exploration

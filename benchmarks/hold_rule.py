@@ -8,12 +8,17 @@ The runs are ``benchmarks/campaign.py``'s: ``--stages average`` trains the trust
 with the paper's Hopper teacher on seeds 100-103 (teacher labels ``paper-average10k`` and
 ``paper-average30k``), ``--stages hold`` the same cells with ``algo.max_promoted=10`` (labels
 ``<the average run's label>-hold``, 200k frames): promotions stop once 10 agent trajectories are in
-the teacher buffer, the top-K buffer's first refill, before which its threshold C cannot rise. Per
-seed the hold frame is the first logged frame at which the held run's ``teacher/num_promoted``
-reached 10; up to there both runs train alike, which their evaluations show (the report says where
-a pair first differs, if it does). The window is the evaluations after the hold frame, up to 200k
-frames, of each run. In it, per actor (the target actor, shipped by the candidate, decides; the
-online actor is reported beside it):
+the teacher buffer. With the paper's one-episode teacher, the top-K buffer (K = 10) fills its empty
+places with the first 9 promotions while C stays at the demonstration's r_e; the tenth evicts the
+demonstration and C rises once, to the lowest of the 10 agent trajectories. A batch may promote
+several trajectories, so a held run can end past 10 (the report gives its count, and C at the
+hold and at 200k). Per seed, the hold frame is the first logged frame at which the held run had
+promoted 10; the split is the first logged frame at which the other run had promoted more than the
+held run ever did: up to there the hold changed nothing, and on one commit and machine, without a
+restart before it, both runs train alike (the report says where a pair's evaluations first differ
+before the hold, if they do; such a pair still counts, as two runs of the same setting but the
+hold). The window is each run's evaluations after the split, up to 200k frames. In it, per actor
+(the target actor, shipped by the candidate, decides; the online actor is reported beside it):
 
 - a fall is an evaluation below the teacher's return after the run's first pass (the fall share's
   own definition, :func:`torchrl_sail.harness.fall_share`);
@@ -21,12 +26,13 @@ online actor is reported beside it):
   run: a held buffer keeps C near the teacher's own level, so a held run may stay close above its
   teacher, and falls below the teacher, counted alone, would favour the runs whose C rose.
 
-The reading, pooled over the seeds: the teacher buffer's change **causes** falls if the held runs'
-drop share (target actor) is at most :data:`MAX_SHARE_OF_BASELINE` of the other runs' and those
-had at least :data:`MIN_BASELINE_DROPS` drops; it is **not shown** to if the held runs' drop share
-is at least the other runs'; **inconclusive** between the two. ``pending`` until every run of both
-stages is finished. A run is refused, naming its folder, when its config was not run with its
-stage's settings or when two runs claim one seed.
+The reading, of the target actor's drops pooled over the seeds: the teacher buffer's change **is a
+cause** of the drops if the held runs dropped in at most :data:`MAX_SHARE_OF_BASELINE` of the other
+runs' share, those had at least :data:`MIN_BASELINE_DROPS` drops, and in at least
+:data:`MIN_SEEDS_AGREEING` seeds the held run dropped no more often than its pair; it is **not
+shown** to be if the held runs dropped at least as often as the others; **inconclusive** otherwise.
+``pending`` until every run of both stages is finished. A run is refused, naming its folder, when
+its config was not run with its stage's settings or when two runs claim one seed.
 """
 
 from __future__ import annotations
@@ -47,6 +53,7 @@ from torchrl_sail.harness import read_scalar, write_atomic  # noqa: E402
 MAX_PROMOTED = 10
 MAX_SHARE_OF_BASELINE = 0.5
 MIN_BASELINE_DROPS = 4
+MIN_SEEDS_AGREEING = 3  # seeds whose held run dropped no more often than its pair
 ENV = "Hopper-v4"
 SEEDS = tuple(seed for seeds in AVERAGE_SEEDS.values() for seed in seeds)
 CANDIDATE = {"optim.actor_preactivation_coef": 0.001, "eval.actor": "target", "eval.other_actor": True}
@@ -146,6 +153,13 @@ def window_counts(curve: list[tuple[int, float]], teacher: float, after: int) ->
     return counts
 
 
+def split_frame(held: Arm, other: Arm) -> int | None:
+    """The first logged frame at which the other run had promoted more than the held run ever did:
+    up to there the hold changed nothing (None: not by :data:`HOLD_FRAMES`)."""
+    most = max(value for _, value in held.promoted)
+    return next((f for f, value in other.promoted if value > most and f <= HOLD_FRAMES), None)
+
+
 def report(roots: list[Path]) -> str:
     found = pairs(roots)
     lines = [
@@ -153,47 +167,59 @@ def report(roots: list[Path]) -> str:
         "",
         f"Written by `benchmarks/hold_rule.py`: {ENV}, the paper's teacher, the trusted-default candidate, seeds "
         f"{SEEDS[0]}-{SEEDS[-1]}; held runs stop promoting at {MAX_PROMOTED} promoted trajectories "
-        f"(`algo.max_promoted={MAX_PROMOTED}`), their pairs go on. Window: each run's evaluations after the hold "
-        f"frame, up to {HOLD_FRAMES // 1000}k. A fall: below the teacher after the run's first pass; a drop: below "
-        "half of the actor's best earlier evaluation.",
+        f"(`algo.max_promoted={MAX_PROMOTED}`), their pairs go on. Window: both runs' evaluations after the split "
+        f"(the first frame at which the other run had promoted more than the held run), up to "
+        f"{HOLD_FRAMES // 1000}k. A fall: below the teacher after the run's first pass; a drop: below half of the "
+        "actor's best earlier evaluation.",
         "",
-        "| seed | hold frame | same training up to it | C at the hold, at the end (held / other) "
+        "| seed | hold frame (held run's promotions) | split | same training up to the hold "
+        "| C at the hold, at the end (held / other) "
         "| target actor falls (held / other) | target actor drops (held / other) "
         "| online actor falls (held / other) | online actor drops (held / other) |",
-        "|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     pooled = {
         (arm, actor, kind): [0, 0] for arm in ("hold", "baseline") for actor in ACTORS for kind in ("falls", "drops")
     }
-    missing = []
+    missing, agreeing, counted = [], 0, 0
     for seed in SEEDS:
         pair = found.get(seed, {})
         if set(pair) != {"hold", "baseline"}:
             missing += [f"seed {seed} {arm}" for arm in ("hold", "baseline") if arm not in pair]
             continue
-        held, other = pair["hold"], pair["baseline"]
-        at = hold_frame(held)
-        if at is None:
-            lines.append(
-                f"| {seed} | never: {MAX_PROMOTED} trajectories not promoted by {HOLD_FRAMES // 1000}k | | | | | | |"
+        held_run, other_run = pair["hold"], pair["baseline"]
+        at = hold_frame(held_run)
+        split = None if at is None else split_frame(held_run, other_run)
+        if at is None or split is None:
+            why = (
+                f"never: {MAX_PROMOTED} trajectories not promoted by {HOLD_FRAMES // 1000}k"
+                if at is None
+                else f"{at // 1000}k | none: the other run promoted no more by {HOLD_FRAMES // 1000}k"
             )
+            lines.append(f"| {seed} | {why} |" + " |" * (8 if at is None else 7))
             continue
-        differs = first_difference(held.evals["target"], other.evals["target"], at)
+        counted += 1
+        promoted = max(value for _, value in held_run.promoted)
+        differs = first_difference(held_run.evals["target"], other_run.evals["target"], at)
         same = "yes" if differs is None else f"no: first differs at {differs // 1000}k"
-        c = f"{value_at(held.threshold, at):.0f} / {value_at(other.threshold, at):.0f}, "
-        c += f"{value_at(held.threshold, HOLD_FRAMES):.0f} / {value_at(other.threshold, HOLD_FRAMES):.0f}"
+        c = f"{value_at(held_run.threshold, at):.0f} / {value_at(other_run.threshold, at):.0f}, "
+        c += f"{value_at(held_run.threshold, HOLD_FRAMES):.0f} / {value_at(other_run.threshold, HOLD_FRAMES):.0f}"
         cells = []
         for actor in ACTORS:
-            counts = {arm: window_counts(run.evals[actor], run.teacher_return, at) for arm, run in pair.items()}
+            counts = {arm: window_counts(run.evals[actor], run.teacher_return, split) for arm, run in pair.items()}
             for kind, total in (("falls", "counted"), ("drops", "evaluations")):
                 for arm in ("hold", "baseline"):
                     pooled[arm, actor, kind][0] += counts[arm][kind]
                     pooled[arm, actor, kind][1] += counts[arm][total]
-                held, other = counts["hold"], counts["baseline"]
-                cells.append(f"{held[kind]}/{held[total]} / {other[kind]}/{other[total]}")
-        lines.append(f"| {seed} | {at // 1000}k | {same} | {c} | " + " | ".join(cells) + " |")
+                mine, theirs = counts["hold"], counts["baseline"]
+                cells.append(f"{mine[kind]}/{mine[total]} / {theirs[kind]}/{theirs[total]}")
+                if (actor, kind) == ("target", "drops"):
+                    agreeing += share(mine[kind], mine[total]) <= share(theirs[kind], theirs[total])
+        lines.append(
+            f"| {seed} | {at // 1000}k ({promoted:.0f}) | {split // 1000}k | {same} | {c} | " + " | ".join(cells) + " |"
+        )
     lines.append(
-        "| pooled | | | | "
+        "| pooled | | | | | "
         + " | ".join(
             f"{percent(*pooled['hold', actor, kind])} / {percent(*pooled['baseline', actor, kind])}"
             for actor in ACTORS
@@ -201,29 +227,42 @@ def report(roots: list[Path]) -> str:
         )
         + " |"
     )
-    return "\n".join([*lines, "", f"**Reading: {reading(pooled, missing)}.**"])
+    return "\n".join([*lines, "", f"**Reading: {reading(pooled, missing, agreeing, counted)}.**"])
 
 
-def reading(pooled: dict, missing: list[str]) -> str:
+def share(part: int, whole: int) -> float:
+    return part / whole if whole else 0.0
+
+
+def reading(pooled: dict, missing: list[str], agreeing: int, counted: int) -> str:
+    """The rule's reading of the target actor's drops pooled over the seeds; ``agreeing`` of the
+    ``counted`` seeds had a held drop share no higher than the other run's."""
     if missing:
         return f"pending ({len(missing)} runs missing: {', '.join(missing)})"
+    if not counted:
+        return "no pair reached a split: nothing to compare"
     (held, held_n), (other, other_n) = pooled["hold", "target", "drops"], pooled["baseline", "target", "drops"]
-    held_share = held / held_n if held_n else math.nan
-    other_share = other / other_n if other_n else math.nan
-    if other >= MIN_BASELINE_DROPS and held_share <= MAX_SHARE_OF_BASELINE * other_share:
+    mine, theirs = percent(held, held_n), percent(other, other_n)
+    if (
+        other >= MIN_BASELINE_DROPS
+        and share(held, held_n) <= MAX_SHARE_OF_BASELINE * share(other, other_n)
+        and agreeing >= MIN_SEEDS_AGREEING
+    ):
         return (
-            f"the teacher buffer's change causes falls: the held runs' target actor dropped in {percent(held, held_n)} "
-            f"of their evaluations, at most {MAX_SHARE_OF_BASELINE:g} of the other runs' {percent(other, other_n)}"
+            f"the teacher buffer's change is a cause of the drops: the held runs' target actor dropped in {mine} of "
+            f"their evaluations, at most {MAX_SHARE_OF_BASELINE:g} of the other runs' {theirs}, and no more often "
+            f"than its pair in {agreeing} of {counted} seeds"
         )
-    if held_share >= other_share:
+    if share(held, held_n) >= share(other, other_n):
         return (
-            f"not shown: the held runs' target actor dropped in {percent(held, held_n)} of their evaluations, "
-            f"not fewer than the other runs' {percent(other, other_n)}"
+            f"not shown: the held runs' target actor dropped in {mine} of their evaluations, not less often than "
+            f"the other runs' {theirs}"
         )
     return (
-        f"inconclusive: the held runs' target actor dropped in {percent(held, held_n)} of their evaluations "
-        f"against the other runs' {percent(other, other_n)} (a cause needs at most {MAX_SHARE_OF_BASELINE:g} of "
-        f"it, with at least {MIN_BASELINE_DROPS} drops there)"
+        f"inconclusive: the held runs' target actor dropped in {mine} of their evaluations against the other "
+        f"runs' {theirs}, no more often than its pair in {agreeing} of {counted} seeds (a cause needs at most "
+        f"{MAX_SHARE_OF_BASELINE:g} of it, at least {MIN_BASELINE_DROPS} drops there and at least "
+        f"{MIN_SEEDS_AGREEING} seeds)"
     )
 
 
@@ -235,6 +274,7 @@ def main(argv: list[str] | None = None) -> int:
     text = report(args.roots)
     print(text)
     if args.out:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
         write_atomic(args.out, text + "\n")
     return 0
 

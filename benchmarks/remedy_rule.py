@@ -199,6 +199,7 @@ def main(argv: list[str] | None = None) -> int:
     text = report(args.roots)
     print(text)
     if args.out:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
         write_atomic(args.out, text + "\n")
     return 0
 

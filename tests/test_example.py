@@ -434,3 +434,42 @@ def test_seed_sweep_with_launcher(tmp_path, teacher_dir, launcher):
     # Different seeds, different data: the random warm-up episodes differ.
     returns = [read_scalar(sweep / f"seed{seed}", "train/dense_return") for seed in (0, 1)]
     assert returns[0] != returns[1]
+
+
+def test_max_promoted_holds_the_teacher_buffer(tmp_path):
+    """A 3-step InvertedPendulum teacher (r_e = 0.1 R = 0.3, ``env.reward_rounding=none``) that random
+    episodes beat: with ``algo.max_promoted=3`` promotions stop at the first batch that reaches 3 (a
+    batch of 50 frames may promote several), and the count and C hold from there; without, they go on."""
+    from torchrl_sail import TRANSITION_KEYS, save_demonstrations
+
+    env = make_sail_env("InvertedPendulum-v4", delayed_reward=False)
+    env.set_seed(0)
+    shortest = min((env.rollout(1000, break_when_any_done=True) for _ in range(50)), key=lambda r: r.numel())
+    assert shortest.numel() <= 4
+    save_demonstrations(
+        tmp_path / "teacher", shortest.select(*TRANSITION_KEYS, "step_count"), {"env_id": "InvertedPendulum-v4"}
+    )
+    common = [
+        "env=InvertedPendulum-v4",
+        f"teacher.path={tmp_path / 'teacher'}",
+        "env.reward_rounding=none",
+        "collector.total_frames=1000",
+        "collector.init_random_frames=1000",
+        "collector.frames_per_batch=50",
+        "optim.updates_per_train=5",
+        "optim.discriminator.steps=1",
+        "eval.every_frames=0",
+        "eval.best_policy.episodes=0",
+        "checkpoint.every_frames=0",
+        "logger.backends=[csv]",
+        "logger.log_every_frames=50",
+    ]
+    run(tmp_path / "held", *common, "algo.max_promoted=3")
+    run(tmp_path / "free", *common)
+    held = [value for _, value in read_scalar(tmp_path / "held", "teacher/num_promoted")]
+    free = [value for _, value in read_scalar(tmp_path / "free", "teacher/num_promoted")]
+    reached = next(i for i, value in enumerate(held) if value >= 3)
+    assert held[: reached + 1] == free[: reached + 1]  # the same runs until the hold
+    assert set(held[reached:]) == {held[reached]} and free[-1] > held[-1]
+    threshold = [value for _, value in read_scalar(tmp_path / "held", "teacher/threshold")]
+    assert set(threshold[reached:]) == {threshold[reached]}
