@@ -64,7 +64,8 @@ CPUs, the wall time and the command of every cell; ``paper-comparison``, the pap
 layout (Table 1's SAIL and exploration variants beside the paper's figures, Figure 2's baselines,
 Figures 3-4's variants of SAIL, with ``paper_figure2_<teacher>.png`` and ``paper_figures34_<teacher>.png``
 of their curves), each cell the last-5 and the best-policy means. ``--update-docs`` writes every block of
-:data:`DOCUMENTS` (the README, ``docs/results.md`` and the studies' READMEs) and every file of
+:data:`DOCUMENTS` (the README, ``docs/results.md``, the speed tables of ``docs/performance.md``
+and the studies' READMEs) and every file of
 :func:`generated_files` from the runs committed under ``benchmarks/results/``; ``--check`` writes
 nothing and names each block or file that differs from what they would be (exit status 1).
 
@@ -1591,6 +1592,8 @@ def block_trusted_rule(source: Source, target: Path) -> str:
 
 
 CAMPAIGN = Path("benchmarks/results/campaign")  # the results campaign's runs, relative to the repository
+THROUGHPUT = Path("benchmarks/results/throughput")  # throughput.py's invocations
+COLLECT = Path("benchmarks/results/collect")  # bench_collect.py's and bench_eval.py's records
 
 
 def block_falls(source: Source, target: Path) -> str:
@@ -1744,6 +1747,30 @@ class Block:
     draw: Callable[[Source], None] | None = None
 
 
+def throughput_block(*names: str) -> Block:
+    """The table of ``throughput.py``'s invocations in the files ``names`` of the block's folder."""
+    return Block(lambda source, target: sibling("throughput").docs_block([source.roots[0] / name for name in names]))
+
+
+def collect_block(file: str, *labels: str, added: bool = False) -> Block:
+    """The table of ``bench_collect.py``'s records ``labels`` in the file ``file`` of the block's folder."""
+    return Block(
+        lambda source, target: sibling("bench_collect").docs_table(source.roots[0] / file, list(labels), added)
+    )
+
+
+#: The collection records compared in the performance docs: a device-less env against one on the cpu
+#: device (two invocations), and the exploration policy as one module against TorchRL's sequence
+COLLECT_CHOICES = (
+    "env on the cpu device (previous), invocation 1",
+    "device-less env (current), invocation 1",
+    "env on the cpu device (previous), invocation 2",
+    "device-less env (current), invocation 2",
+    "sequence policy (before)",
+    "TD3ExplorationPolicy (after)",
+)
+FLOOR_RATIOS = [("EnvBase floor", "gymnasium"), ("GymEnv", "EnvBase floor")]
+
 #: Every block ``--write-into FILE:BLOCK`` can write, by name.
 BLOCKS = {
     "campaign-readme": Block(block_readme, draw_readme),
@@ -1756,6 +1783,24 @@ BLOCKS = {
     "hopper-falls": Block(block_falls),
     "random-policy": Block(block_random_policy),
     "paper-comparison": Block(block_paper_comparison, draw_paper_comparison),
+    "throughput-amd-epyc": throughput_block("amd_epyc_fp32_flush.json"),
+    "throughput-amd-epyc-no-flush": throughput_block("throughput.json"),
+    "throughput-amx-xeon": throughput_block("amx_xeon_fp32_flush.json", "amx_xeon_bf16_flush.json"),
+    "throughput-amx-xeon-no-flush": throughput_block("amx_xeon_fp32.json", "amx_xeon_bf16.json"),
+    "throughput-cuda-h100": throughput_block(
+        "cuda_h100_graphs.json", "cuda_h100_eager.json", "cuda_h100_graphs_bf16.json"
+    ),
+    "collect-choices": collect_block("collect.json", *COLLECT_CHOICES),
+    "collect-per-transform": collect_block("collect.json", "per transform", added=True),
+    "collect-floor": Block(
+        lambda source, target: sibling("bench_collect").docs_ratios(
+            source.roots[0] / "collect.json", "per transform, EnvBase floor", FLOOR_RATIOS
+        )
+    ),
+    "collect-gpu": collect_block("gpu_h200.json", "H200 host, device=cuda", "H200 host, device=cpu"),
+    "eval-ways": Block(
+        lambda source, target: sibling("bench_eval").docs_table(source.roots[0] / "eval.json", "HalfCheetah, 1 thread")
+    ),
 }
 
 #: The generated blocks of the repository's Markdown files: file -> {block: the folder it is made from}
@@ -1773,6 +1818,22 @@ DOCUMENTS = {
     "benchmarks/results/campaign/README.md": {"campaign-seeds": CAMPAIGN},
     "benchmarks/results/hopper_falls/README.md": {"hopper-falls": Path("benchmarks/results/hopper_falls")},
     "benchmarks/results/random_policy/README.md": {"random-policy": Path("benchmarks/results/random_policy")},
+    "docs/performance.md": {
+        **{
+            name: THROUGHPUT
+            for name in (
+                "throughput-amd-epyc",
+                "throughput-amd-epyc-no-flush",
+                "throughput-amx-xeon",
+                "throughput-amx-xeon-no-flush",
+                "throughput-cuda-h100",
+            )
+        },
+        **{
+            name: COLLECT
+            for name in ("collect-choices", "collect-per-transform", "collect-floor", "eval-ways", "collect-gpu")
+        },
+    },
 }
 
 # falls.py's tables: file -> (the run folders it reads, the teacher return of runs without a summary),

@@ -25,6 +25,8 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
+import shlex
 import statistics
 import sys
 import time
@@ -179,6 +181,92 @@ def measure(args) -> dict[str, list[float]]:
             times["+ policy"].append(time_env(env, args.frames, policy))
             times["Collector"].append(time_collector(cfg, env, policy, args.frames))
     return {layer: [1e3 * t / args.frames for t in ts] for layer, ts in times.items()}
+
+
+# ----------------------------------------------------------------------------- the docs' tables
+
+#: How the docs name each layer; ``--per-transform``'s layers are named by their transform
+LAYER_NAMES = {
+    "gymnasium": "gymnasium's env stepped with NumPy actions",
+    "EnvBase floor": "`EnvBase floor` (gymnasium's arrays into a tensordict, through `EnvBase`)",
+    "GymEnv": "TorchRL's `GymEnv` (`step_and_maybe_reset`)",
+    "env stack": "the example's env stack (`make_sail_env`: time feature, delayed reward, step counter, ...)",
+    "+ policy": "+ the example's exploration policy before each step",
+    "Collector": "the example's `Collector` over that env and policy",
+}
+
+
+def layer_name(layer: str) -> str:
+    """The docs' name of a layer of :func:`measure`."""
+    if layer in LAYER_NAMES:
+        return LAYER_NAMES[layer]
+    transform, stack, _ = layer.removeprefix("+ ").partition(" (env stack)")
+    return f"+ `{transform}`" + (" (the example's env stack)" if stack else "")
+
+
+def record_line(path: Path, label: str, setup: dict) -> str:
+    """Where a record of ``--out`` lies, how it was made (its command, rebuilt from what the record
+    holds) and on what."""
+    flags = [f"--env {setup['env']}"] if setup.get("env", "Hopper-v4") != "Hopper-v4" else []
+    flags += [f"--frames {setup['frames']}", f"--rounds {setup['rounds']}", f"--threads {setup['threads']}"]
+    overrides = re.search(r"--overrides (\S+)", setup.get("command", ""))
+    flags += [f"--overrides {overrides[1]}"] if overrides else []
+    flags += ["--per-transform"] if "--per-transform" in setup.get("command", "") else []
+    flags.append(f"--label {shlex.quote(label)}")
+    flags += [f"--other-load {shlex.quote(setup['other_load'])}"] if setup.get("other_load") else []
+    command = " ".join(["python benchmarks/bench_collect.py", *flags, f"--out {path}"])
+    code = setup.get("code") or (
+        f"commit {setup['commit'][:7]}" + (" (uncommitted changes)" if setup.get("dirty") else "")
+    )
+    threads = f"{setup['threads']} torch thread" + ("" if setup["threads"] == 1 else "s")
+    return (
+        f"- `{path}`, record `{label}`: {setup.get('env', 'Hopper-v4')}, {setup['rounds']} rounds of {setup['frames']} "
+        f"frames, {threads}, torch {setup['torch']} on {setup['cpu_model']}; code: {code}; "
+        f"other load: {setup.get('other_load') or 'not recorded'}.\n\n  ```text\n  {command}\n  ```"
+    )
+
+
+def docs_table(path: Path, labels: list[str], added: bool = False) -> str:
+    """The docs' table of the records ``labels`` of the file ``path`` (written by ``--out``): one row per
+    layer (in the order measured), one column per record (ms per frame, the median over its rounds);
+    with ``added``, each layer's difference to the one before it, of the one record."""
+    records = json.loads(Path(path).read_text())
+    missing = [label for label in labels if label not in records]
+    if missing:
+        raise KeyError(f"{path} has no record {', '.join(map(repr, missing))}; it has {', '.join(map(repr, records))}")
+    if added and len(labels) != 1:
+        raise ValueError("added is the difference between the layers of one record")
+    medians = {label: {row["layer"]: row["ms_per_frame"] for row in records[label]["layers"]} for label in labels}
+    layers = list(dict.fromkeys(layer for label in labels for layer in medians[label]))
+    header = ["layer", *(f"`{label}`" for label in labels), *(["added"] if added else [])]
+    lines = [*(record_line(path, label, records[label]["setup"]) for label in labels), ""]
+    lines += ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    for layer in layers:
+        cells = [f"{medians[label][layer]:.2f}" if layer in medians[label] else "-" for label in labels]
+        if added:
+            row = next(row for row in records[labels[0]]["layers"] if row["layer"] == layer)
+            cells.append(f"{row['added']:.2f}")
+        lines.append(f"| {layer_name(layer)} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def docs_ratios(path: Path, label: str, pairs: list[tuple[str, str]]) -> str:
+    """The docs' table of the time ratio of each pair of layers ``(layer, base)`` within each round of the
+    record ``label``, and their median: where the machine's speed drifts between rounds, the ratio within a
+    round is the figure."""
+    record = json.loads(Path(path).read_text())[label]
+    rounds = {row["layer"]: row["rounds"] for row in record["layers"]}
+    lines = [
+        record_line(path, label, record["setup"]),
+        "",
+        "| ratio, within a round | rounds | median |",
+        "|---|---|---|",
+    ]
+    for layer, base in pairs:
+        ratios = [mine / theirs for mine, theirs in zip(rounds[layer], rounds[base], strict=True)]
+        values = ", ".join(f"{ratio:.2f}" for ratio in ratios)
+        lines.append(f"| {layer_name(layer)} / {layer_name(base)} | {values} | {statistics.median(ratios):.2f} |")
+    return "\n".join(lines)
 
 
 def main(argv=None) -> None:

@@ -114,6 +114,41 @@ def measure(args) -> tuple[dict[str, list[float]], dict[str, list[float]]]:
     return ms, returns
 
 
+#: How the docs name each way
+WAY_NAMES = {
+    "sequence": "TorchRL's rollout with the actor's sequence",
+    "sequence, shortcut": "+ the plain-tensor shortcut",
+    "one module, shortcut": "the example's `evaluate_episodes`: one module + the shortcut",
+}
+
+
+def docs_table(path: Path, label: str) -> str:
+    """The docs' table of the record ``label`` of the file ``path`` (written by ``--out``): how it was made,
+    and per way the median ms per step and the median of the rounds' time ratios to ``sequence``."""
+    record = json.loads(Path(path).read_text())[label]
+    setup = record["setup"]
+    words = ["python benchmarks/bench_eval.py", f"--env {setup['env']}", f"--episodes {setup['episodes']}"]
+    words += [f"--rounds {setup['rounds']}", f"--threads {setup['threads']}", f"--label {shlex.quote(label)}"]
+    if setup.get("other_load"):
+        words.append(f"--other-load {shlex.quote(setup['other_load'])}")
+    code = f"commit {setup['commit'][:7]}" + (" (uncommitted changes)" if setup.get("dirty") else "")
+    lines = [
+        f"`{path}`, record `{label}`: {setup['env']}, {setup['rounds']} rounds of {setup['episodes']} episodes, "
+        f"{setup['threads']} torch thread{'' if setup['threads'] == 1 else 's'}, torch {setup['torch']} on "
+        f"{setup['cpu_model']}; code: {code}; other load: {setup.get('other_load') or 'not recorded'}.",
+        "",
+        "```text",
+        " ".join(words + [f"--out {path}"]),
+        "```",
+        "",
+        "| way | ms per step (median) | time vs the sequence (median of the rounds' ratios) |",
+        "|---|---|---|",
+    ]
+    for row in record["ways"]:
+        lines.append(f"| {WAY_NAMES[row['way']]} | {row['ms_per_step']:.2f} | {row['vs_sequence']:.2f} |")
+    return "\n".join(lines)
+
+
 def main(argv=None) -> None:
     args = parse_args(argv)
     torch.set_num_threads(args.threads)

@@ -2,7 +2,7 @@
 
     python benchmarks/throughput.py [--env Hopper-v4] [--warmup 2000] [--frames 5000] [--rounds 2] \
         [--threads 1 2] [--trainers sail td3 sb3] [--sail-overrides "a=b c=d"] \
-        [--example-root ../old --label before] [--device cuda]
+        [--example-root ../old --label before] [--device cuda] [--other-load "what else ran"]
 
 Trainers, each in its own process, timed from the end of the warm-up (uniform random actions,
 no updates) for ``--frames`` frames:
@@ -63,7 +63,7 @@ WARMUP_PROCESS_FRAMES = 1000  # the untimed run before --whole-process rounds: t
 SB3_MISSING = 'stable-baselines3 is not installed: pip install -e ".[bench]"'
 
 
-def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+def make_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--env", default="Hopper-v4")
     parser.add_argument("--warmup", type=int, default=2000, help="random frames before timing")
@@ -80,7 +80,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         "--whole-process", action="store_true", help="also run 2 x --frames: frames/s from the process times"
     )
     parser.add_argument("--out", type=Path, default=REPO / "benchmarks" / "results" / "throughput" / "throughput.json")
+    parser.add_argument("--other-load", default=None, help="what else ran on the machine, kept with the machine")
     parser.add_argument("--worker", choices=["sb3"], help=argparse.SUPPRESS)
+    return parser
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    parser = make_parser()
     args = parser.parse_args(argv)
     if args.frames <= 0 or args.frames % 1000:
         parser.error(f"--frames must be a positive multiple of 1000 (the train cadence), got {args.frames}")
@@ -336,14 +342,20 @@ def aggregate(records: list[dict]) -> list[dict]:
     return rows
 
 
-def whole_process_fps(runs: list[dict], frames: int) -> float | None:
-    """``frames / (T(2 frames) - T(frames))``, the process times of the two runs of each round; median over rounds."""
+def whole_process_rates(runs: list[dict], frames: int) -> dict[int, float]:
+    """Per round, ``frames / (T(2 frames) - T(frames))`` from the process times of its two runs (rounds
+    without both, or with a non-positive difference, left out)."""
     times = {}
     for r in runs:
         if r.get("process_seconds") is not None and "error" not in r:
             times.setdefault(r.get("round", 0), {})[r.get("frames")] = r["process_seconds"]
-    rates = [frames / (t[2 * frames] - t[frames]) for t in times.values() if {frames, 2 * frames} <= t.keys()]
-    rates = [rate for rate in rates if rate > 0]
+    rates = {rnd: frames / (t[2 * frames] - t[frames]) for rnd, t in times.items() if {frames, 2 * frames} <= t.keys()}
+    return {rnd: rate for rnd, rate in rates.items() if rate > 0}
+
+
+def whole_process_fps(runs: list[dict], frames: int) -> float | None:
+    """The median over rounds of :func:`whole_process_rates`."""
+    rates = list(whole_process_rates(runs, frames).values())
     return statistics.median(rates) if rates else None
 
 
@@ -372,6 +384,129 @@ def markdown(rows: list[dict]) -> str:
         ]
         lines.append("| " + " | ".join(map(str, cells)) + " |")
     return "\n".join(lines)
+
+
+# ----------------------------------------------------------------------------- the docs' tables
+
+
+def trainer_name(trainer: str, args: dict) -> str:
+    """How the docs name ``trainer`` of the invocation whose arguments were ``args``."""
+    if trainer == "sb3":
+        device = args.get("device", "cpu")
+        return "SB3 TD3" if device == "cpu" else f'SB3 TD3, `device="{device}"`'
+    name = "SAIL" if trainer == "sail" else "TD3, `algo=td3_delayed`"
+    overrides = args.get("sail_overrides", "")
+    return f"{name}, `{overrides}`" if overrides else f"{name} (defaults)" if trainer == "sail" else name
+
+
+def command_line(args: dict, out: Path) -> str:
+    """The command that made an invocation from its recorded ``args``, writing to ``out``; options at
+    their defaults left out, as is ``--example-root`` (a path of the machine it ran on)."""
+    defaults = vars(make_parser().parse_args([]))
+    words = ["python benchmarks/throughput.py"]
+    for name in ("trainers", "threads", "rounds", "warmup", "frames", "env", "seed", "device", "sail_overrides"):
+        value = args.get(name, defaults[name])
+        if value != defaults[name] or name in ("trainers", "threads", "rounds", "warmup", "frames"):
+            values = value if isinstance(value, list) else [value]
+            words.append(f"--{name.replace('_', '-')} " + " ".join(shlex.quote(str(v)) for v in values))
+    if args.get("whole_process"):
+        words.append("--whole-process")
+    if args.get("label"):
+        words.append(f"--label {shlex.quote(args['label'])}")
+    return " ".join(words + [f"--out {out}"])
+
+
+def machine_line(info: dict) -> str:
+    """The machine of an invocation, as its file records it."""
+    flags = ", ".join(info.get("cpu_flags") or []) or "none of AVX2, AVX-512, AMX"
+    gpu_name = f"{info['gpu']}, " if info.get("gpu") else ""
+    versions = ", ".join(f"{name} {info[name.lower()]}" for name in ("Python", "torch", "torchrl", "stable-baselines3"))
+    load = f"1-minute load average {info['load_1min']:.2f} at the start"
+    other = f"; other load: {info['other_load']}" if info.get("other_load") else ""
+    return f"{gpu_name}{info['cpu_model']} ({info['cpu_count']} CPUs; CPU flags: {flags}); {versions}; {load}{other}"
+
+
+def docs_block(paths: list[Path]) -> str:
+    """The docs' Markdown for the invocations in ``paths`` (files written by ``--out``): how each was made
+    and on what, a table of the medians over rounds and, where there were several, one of every round.
+    Ratios are to SB3 of the same invocation and thread count; ``-`` where a figure is missing."""
+
+    def fmt(value, spec: str) -> str:
+        return "-" if value is None else format(value, spec)
+
+    made, medians, rounds, several = [], [], [], False
+    for path in paths:
+        data = json.loads(Path(path).read_text())
+        args, records = data["args"], data["records"]
+        several |= args["rounds"] > 1
+        made += [
+            f"- `{path}`, invocation `{args.get('label') or '-'}`: {args.get('env', 'Hopper-v4')}, "
+            f"{plural(args['rounds'], 'round')} of {args['frames']} timed frames after {args['warmup']} warm-up frames"
+            + (
+                f"; whole-process from runs of {args['frames']} and {2 * args['frames']} frames"
+                if args.get("whole_process")
+                else ""
+            )
+            + f"; on {machine_line(data['machine'])}.",
+            "",
+            "  ```text",
+            f"  {command_line(args, path)}",
+            "  ```",
+        ]
+        for row in aggregate(records):
+            label, name = row["label"] or "-", trainer_name(row["trainer"], args)
+            medians.append(
+                f"| {label} | {name} | {row['threads']} | {fmt(row['fps'], '.1f')} | {fmt(row['fps_vs_sb3'], '.2f')} "
+                f"| {fmt(row.get(PROCESS_METRIC), '.1f')} | {fmt(row.get('fps_whole_process_vs_sb3'), '.2f')} "
+                f"| {fmt(row['ms_update'], '.2f')} | {fmt(row['ms_frame'], '.2f')} | {fmt(row['peak_mb'], '.0f')} |"
+            )
+            rounds.append(round_row(records, row, label, name, args["frames"]))
+    lines = [
+        *made,
+        "",
+        "| invocation | trainer | threads | frames/s, timers | vs SB3 | frames/s, whole-process | vs SB3 "
+        "| ms per TD3 step | ms collection per frame | peak MB |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+        *medians,
+    ]
+    if several:  # with one round, the medians are the rounds
+        lines += [
+            "",
+            "Round by round (frames/s, and its ratio to SB3's in the same round):",
+            "",
+            "| invocation | trainer | threads | timers | vs SB3 | whole-process | vs SB3 |",
+            "|---|---|---|---|---|---|---|",
+            *rounds,
+        ]
+    return "\n".join(lines)
+
+
+def plural(count: int, noun: str) -> str:
+    return f"{count} {noun}" + ("" if count == 1 else "s")
+
+
+def round_row(records: list[dict], row: dict, label: str, name: str, frames: int) -> str:
+    """The per-round figures of one row of :func:`aggregate` (a trainer at a thread count), as a table row."""
+
+    def group(trainer: str) -> list[dict]:
+        return [
+            r
+            for r in records
+            if r["trainer"] == trainer and r["threads"] == row["threads"] and r.get("label", "") == row["label"]
+        ]
+
+    def timers(runs: list[dict]) -> dict[int, float]:
+        return {r.get("round", 0): r["fps"] for r in runs if r.get("frames", frames) == frames and r.get("fps")}
+
+    def cells(mine: dict[int, float], peer: dict[int, float]) -> tuple[str, str]:
+        values = ", ".join(f"{mine[rnd]:.1f}" for rnd in sorted(mine)) or "-"
+        ratios = ", ".join(f"{mine[rnd] / peer[rnd]:.2f}" for rnd in sorted(mine) if rnd in peer) or "-"
+        return values, ratios
+
+    own, sb3 = group(row["trainer"]), group("sb3")
+    timer_cells = cells(timers(own), timers(sb3))
+    process_cells = cells(whole_process_rates(own, frames), whole_process_rates(sb3, frames))
+    return f"| {label} | {name} | {row['threads']} | " + " | ".join(timer_cells + process_cells) + " |"
 
 
 def gpu(device: str) -> dict:
@@ -409,7 +544,7 @@ def main(argv: list[str] | None = None) -> None:
         return
     if "sb3" in args.trainers:
         require_sb3()
-    info = machine(args.device)
+    info = machine(args.device) | ({"other_load": args.other_load} if args.other_load else {})
     print(", ".join(f"{k} {v}" for k, v in info.items()))
     if info["load_1min"] > 0.5:
         print(f"WARNING: 1-min load average {info['load_1min']:.2f} > 0.5: something else is running", file=sys.stderr)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import pytest
 import torch
 from benchmark_scripts import load_benchmark
 from torchrl.envs import GymEnv
@@ -87,3 +88,77 @@ def test_floor_env_steps_like_gym_env():
         ends += int(step_reference["next", "done"])
         torch.testing.assert_close(td_floor["observation"], td_reference["observation"].float())  # after a reset too
     assert ends >= 1
+
+
+def made_record(rounds: dict[str, list[float]], **setup) -> dict:
+    """A record as ``main`` writes it, from each layer's per-round ms per frame."""
+    rows, previous = [], 0.0
+    for layer, values in rounds.items():
+        median = sorted(values)[len(values) // 2]
+        rows.append({"layer": layer, "ms_per_frame": median, "added": median - previous, "rounds": values})
+        previous = median
+    base = {"env": "Hopper-v4", "frames": 3000, "rounds": 3, "threads": 1, "torch": "2.13.0+cpu", "cpu_model": "CPU"}
+    return {
+        "setup": base | {"command": "python benchmarks/bench_collect.py", "commit": "b" * 40} | setup,
+        "layers": rows,
+    }
+
+
+def test_docs_table_one_column_per_record_and_the_added_column(tmp_path):
+    path = tmp_path / "collect.json"
+    first = made_record({"gymnasium": [0.1, 0.2, 0.3], "GymEnv": [0.5, 0.4, 0.6], "Collector": [1.0, 1.2, 1.1]})
+    second = made_record(
+        {"gymnasium": [0.3, 0.3, 0.3], "EnvBase floor": [0.35, 0.45, 0.4], "GymEnv": [0.9, 0.7, 0.8]},
+        command="python benchmarks/bench_collect.py --overrides device=cuda --per-transform",
+        other_load="two runs",
+    )
+    path.write_text(json.dumps({"a": first, "b b": second}))
+    text = bench_collect.docs_table(path, ["a", "b b"])
+    rows = [line for line in text.splitlines() if line.startswith("| ") and not line.startswith("| layer")]
+    # layers in the order measured, a record without the layer shows "-"
+    assert rows == [
+        f"| {bench_collect.LAYER_NAMES['gymnasium']} | 0.20 | 0.30 |",
+        f"| {bench_collect.LAYER_NAMES['GymEnv']} | 0.50 | 0.80 |",
+        f"| {bench_collect.LAYER_NAMES['Collector']} | 1.10 | - |",
+        f"| {bench_collect.LAYER_NAMES['EnvBase floor']} | - | 0.40 |",
+    ]
+    commands = [line.strip() for line in text.splitlines() if "python benchmarks/bench_collect.py" in line]
+    assert commands[1] == (
+        "python benchmarks/bench_collect.py --frames 3000 --rounds 3 --threads 1 --overrides device=cuda "
+        f"--per-transform --label 'b b' --other-load 'two runs' --out {path}"
+    )
+    added = bench_collect.docs_table(path, ["a"], added=True).splitlines()[-2:]
+    assert added == [
+        f"| {bench_collect.LAYER_NAMES['GymEnv']} | 0.50 | 0.30 |",
+        f"| {bench_collect.LAYER_NAMES['Collector']} | 1.10 | 0.60 |",
+    ]
+
+
+def test_docs_table_names_a_missing_record_and_refuses_added_over_two(tmp_path):
+    path = tmp_path / "collect.json"
+    path.write_text(json.dumps({"a": made_record({"gymnasium": [0.1]})}))
+    with pytest.raises(KeyError, match=r"collect.json has no record 'c'; it has 'a'"):
+        bench_collect.docs_table(path, ["a", "c"])
+    with pytest.raises(ValueError, match="one record"):
+        bench_collect.docs_table(path, ["a", "a"], added=True)
+
+
+def test_docs_ratios_within_each_round_and_their_median(tmp_path):
+    path = tmp_path / "collect.json"
+    record = made_record({"gymnasium": [0.2, 0.1, 0.4], "EnvBase floor": [0.5, 0.3, 0.6], "GymEnv": [0.6, 0.3, 0.9]})
+    path.write_text(json.dumps({"r": record}))
+    text = bench_collect.docs_ratios(path, "r", [("EnvBase floor", "gymnasium"), ("GymEnv", "EnvBase floor")])
+    rows = [
+        line.split(" | ")[1:]
+        for line in text.splitlines()
+        if line.startswith("| `EnvBase") or line.startswith("| TorchRL")
+    ]
+    # 0.5/0.2, 0.3/0.1, 0.6/0.4; then 0.6/0.5, 0.3/0.3, 0.9/0.6
+    assert rows == [["2.50, 3.00, 1.50", "2.50 |"], ["1.20, 1.00, 1.50", "1.20 |"]]
+
+
+def test_layer_names_of_the_per_transform_layers():
+    assert bench_collect.layer_name("+ StepCounter") == "+ `StepCounter`"
+    assert bench_collect.layer_name("+ DelayedRewardTransform (env stack)") == (
+        "+ `DelayedRewardTransform` (the example's env stack)"
+    )

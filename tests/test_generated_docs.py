@@ -1,6 +1,7 @@
 """Every generated table in the repository's Markdown is what ``benchmarks/aggregate.py`` makes from
 the committed runs: the blocks between ``<!-- aggregate:<block> START/END -->`` markers of the README,
-``docs/results.md`` and the studies' READMEs (``aggregate.DOCUMENTS``), and the generated files (the
+``docs/results.md``, ``docs/performance.md`` (from the benchmarks' JSON files) and the studies' READMEs
+(``aggregate.DOCUMENTS``), and the generated files (the
 campaign's report, the trusted-default rule, the fall tables). No training: the runs are read from
 ``benchmarks/results/``. ``python benchmarks/aggregate.py --update-docs`` writes what differs.
 """

@@ -210,3 +210,56 @@ def test_whole_process_runs_each_trainer_at_frames_and_twice_frames(tmp_path, mo
     records = json.loads(out.read_text())["records"]
     assert [(r["trainer"], r["frames"]) for r in records] == [c[::2] for c in calls[2:]]  # warm-up runs not kept
     assert throughput.parse_args([]).whole_process is False
+
+
+def made_invocation(path, records, **args):
+    """A file as ``main`` writes it (``--out``), from its records."""
+    base = {"env": "Hopper-v4", "warmup": 1000, "frames": 2000, "rounds": 2, "threads": [1], "seed": 0}
+    base |= {"trainers": ["sail", "sb3"], "sail_overrides": "", "label": "x", "device": "cpu", "whole_process": True}
+    machine = {"cpu_model": "Some CPU", "cpu_flags": ["avx2"], "cpu_count": 2, "load_1min": 0.25, "python": "3.11.7"}
+    machine |= {"torch": "2.13.0+cpu", "torchrl": "0.14.1", "stable-baselines3": "2.9.2"}
+    path.write_text(json.dumps({"machine": machine, "args": base | args, "records": records}))
+    return path
+
+
+def test_docs_block_medians_rounds_and_the_command(tmp_path):
+    # two rounds; whole-process per round: 2000 / (T(4000) - T(2000))
+    records = [
+        rec("sail", 1, 60.0, 0, frames=2000, process_seconds=50.0, label="x"),
+        rec("sail", 1, 61.0, 0, frames=4000, process_seconds=70.0, label="x"),  # 100 frames/s
+        rec("sb3", 1, 50.0, 0, frames=2000, process_seconds=60.0, label="x"),
+        rec("sb3", 1, 51.0, 0, frames=4000, process_seconds=100.0, label="x"),  # 50
+        rec("sail", 1, 64.0, 1, frames=2000, process_seconds=50.0, label="x"),
+        rec("sail", 1, 65.0, 1, frames=4000, process_seconds=90.0, label="x"),  # 50
+        rec("sb3", 1, 40.0, 1, frames=2000, process_seconds=60.0, label="x"),
+        rec("sb3", 1, 41.0, 1, frames=4000, process_seconds=100.0, label="x"),  # 50
+    ]
+    path = made_invocation(tmp_path / "t.json", records, sail_overrides="optim.precision=bf16 a=b")
+    lines = throughput.docs_block([path]).splitlines()
+    rows = [line for line in lines if line.startswith("| x |")]
+    # medians: sail 62 (timers) and 75 (whole-process), sb3 45 and 50
+    assert rows[:2] == [
+        "| x | SAIL, `optim.precision=bf16 a=b` | 1 | 62.0 | 1.38 | 75.0 | 1.50 | 10.00 | 1.00 | 500 |",
+        "| x | SB3 TD3 | 1 | 45.0 | 1.00 | 50.0 | 1.00 | 10.00 | 1.00 | 500 |",
+    ]
+    # round by round: 60/50, 64/40; 100/50, 50/50
+    assert (
+        rows[2] == "| x | SAIL, `optim.precision=bf16 a=b` | 1 | 60.0, 64.0 | 1.20, 1.60 | 100.0, 50.0 | 2.00, 1.00 |"
+    )
+    command = next(line.strip() for line in lines if "python benchmarks/throughput.py" in line)
+    assert command == (
+        "python benchmarks/throughput.py --trainers sail sb3 --threads 1 --rounds 2 --warmup 1000 --frames 2000 "
+        f"--sail-overrides 'optim.precision=bf16 a=b' --whole-process --label x --out {path}"
+    )
+    assert "Some CPU (2 CPUs; CPU flags: avx2); Python 3.11.7" in lines[0]
+
+
+def test_docs_block_one_round_without_sb3_and_on_a_gpu(tmp_path):
+    records = [rec("sail", 1, 300.0, 0, label="g")]
+    path = made_invocation(tmp_path / "g.json", records, rounds=1, trainers=["sail"], device="cuda", label="g")
+    text = throughput.docs_block([path])
+    assert "| g | SAIL (defaults) | 1 | 300.0 | - | - | - | 10.00 | 1.00 | 500 |" in text
+    assert "Round by round" not in text  # with one round, the medians are the rounds
+    assert "--device cuda" in text and "--whole-process" in text
+    assert throughput.trainer_name("sb3", {"device": "cuda"}) == 'SB3 TD3, `device="cuda"`'
+    assert throughput.trainer_name("td3", {"sail_overrides": ""}) == "TD3, `algo=td3_delayed`"
