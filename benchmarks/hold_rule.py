@@ -37,7 +37,6 @@ its config was not run with its stage's settings or when two runs claim one seed
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 from dataclasses import dataclass
@@ -46,9 +45,9 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from aggregate import find_run_folders, load_run  # noqa: E402
 from campaign import AVERAGE_SEEDS, HOLD_FRAMES  # noqa: E402
-from trusted_rule import config_value, percent  # noqa: E402
+from trusted_rule import config_value, percent, rule_main  # noqa: E402
 
-from torchrl_sail.harness import read_scalar, write_atomic  # noqa: E402
+from torchrl_sail.harness import read_scalar  # noqa: E402
 
 MAX_PROMOTED = 10
 MAX_SHARE_OF_BASELINE = 0.5
@@ -267,16 +266,7 @@ def reading(pooled: dict, missing: list[str], agreeing: int, counted: int) -> st
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("roots", nargs="+", type=Path, help="results folders (e.g. benchmarks/results/campaign)")
-    parser.add_argument("--out", type=Path, help="also write the report to this Markdown file")
-    args = parser.parse_args(argv)
-    text = report(args.roots)
-    print(text)
-    if args.out:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        write_atomic(args.out, text + "\n")
-    return 0
+    return rule_main(report, __doc__, argv)
 
 
 if __name__ == "__main__":

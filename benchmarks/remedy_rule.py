@@ -25,7 +25,6 @@ A run is refused, naming its folder, when its config was not run with its settin
 
 from __future__ import annotations
 
-import argparse
 import math
 import statistics
 import sys
@@ -34,9 +33,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from aggregate import HEADLINE_EVALS, find_run_folders, load_run  # noqa: E402
 from campaign import AVERAGE_SEEDS, AVERAGE_TEACHERS, REMEDIES, REMEDY_SEEDS  # noqa: E402
-from trusted_rule import EVALUATIONS, FRAMES, Result, config_value, percent, spread  # noqa: E402
-
-from torchrl_sail.harness import write_atomic  # noqa: E402
+from trusted_rule import EVALUATIONS, FRAMES, Result, config_value, percent, rule_main, spread  # noqa: E402
 
 MAX_SHARE_OF_CANDIDATE = 0.5
 CANDIDATE = {"optim.actor_preactivation_coef": 0.001, "eval.actor": "target", "eval.other_actor": True}
@@ -192,16 +189,7 @@ def report(roots: list[Path]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("roots", nargs="+", type=Path, help="results folders (e.g. benchmarks/results/campaign)")
-    parser.add_argument("--out", type=Path, help="also write the report to this Markdown file")
-    args = parser.parse_args(argv)
-    text = report(args.roots)
-    print(text)
-    if args.out:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        write_atomic(args.out, text + "\n")
-    return 0
+    return rule_main(report, __doc__, argv)
 
 
 if __name__ == "__main__":

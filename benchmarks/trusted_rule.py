@@ -31,6 +31,7 @@ import argparse
 import math
 import statistics
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -411,16 +412,23 @@ def report(roots: list[Path]) -> str:
     return "\n".join(lines)
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def rule_main(report: Callable[[list[Path]], str], doc: str, argv: list[str] | None = None) -> int:
+    """The command line of a rule script (this one, ``hold_rule.py``, ``remedy_rule.py``): its ``report``
+    of the results folders given, printed and, with ``--out``, written (the folder made if new)."""
+    parser = argparse.ArgumentParser(description=doc.splitlines()[0])
     parser.add_argument("roots", nargs="+", type=Path, help="results folders (e.g. benchmarks/results/campaign)")
     parser.add_argument("--out", type=Path, help="also write the report to this Markdown file")
     args = parser.parse_args(argv)
     text = report(args.roots)
     print(text)
     if args.out:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
         write_atomic(args.out, text + "\n")
     return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    return rule_main(report, __doc__, argv)
 
 
 if __name__ == "__main__":
