@@ -1642,6 +1642,23 @@ def block_random_policy(source: Source, target: Path) -> str:
     )
 
 
+def block_shipped_teachers(source: Source, target: Path) -> str:
+    """The teachers shipped in ``source.roots[0]`` (``examples/teachers/<env>/``, from the ``metadata.json``
+    that ``examples/make_teacher.py`` writes), in Table 1's env order, each beside the paper's teacher
+    for its env on the gymnasium version the campaign runs the paper's teachers on (v4)."""
+    shipped = [json.loads(path.read_text()) for path in sorted(source.roots[0].glob("*/metadata.json"))]
+    rank = {name: index for index, name in enumerate(PAPER_ENVS)}
+    shipped.sort(key=lambda meta: (rank.get(paper_env(meta["env_id"]), len(rank)), meta["env_id"]))
+    lines = ["| env | return | steps | TD3 frames | the paper's teacher |", "|---|---|---|---|---|"]
+    for meta in shipped:
+        env = meta["env_id"]
+        (ret,), (steps,) = meta["episode_returns"], meta["episode_lengths"]
+        paper = PAPER_TEACHER_RETURNS.get(paper_env(env)) if env.endswith("-v4") else None
+        paper_cell = "-" if paper is None else f"{paper:.1f}"
+        lines.append(f"| {env} | {ret:.1f} | {steps} | {meta['td3_frames'] // 1000}k | {paper_cell} |")
+    return "\n".join(lines)
+
+
 def comparison_cell(group: Group | None) -> str:
     """A cell of the paper's comparison: the last-5 mean ± std over seeds, then the best policy's."""
     if group is None:
@@ -1782,6 +1799,7 @@ BLOCKS = {
     "trusted-rule": Block(block_trusted_rule),
     "hopper-falls": Block(block_falls),
     "random-policy": Block(block_random_policy),
+    "shipped-teachers": Block(block_shipped_teachers),
     "paper-comparison": Block(block_paper_comparison, draw_paper_comparison),
     "throughput-amd-epyc": throughput_block("amd_epyc_fp32_flush.json"),
     "throughput-amd-epyc-no-flush": throughput_block("throughput.json"),
@@ -1818,6 +1836,7 @@ DOCUMENTS = {
     "benchmarks/results/campaign/README.md": {"campaign-seeds": CAMPAIGN},
     "benchmarks/results/hopper_falls/README.md": {"hopper-falls": Path("benchmarks/results/hopper_falls")},
     "benchmarks/results/random_policy/README.md": {"random-policy": Path("benchmarks/results/random_policy")},
+    "docs/training.md": {"shipped-teachers": Path("examples/teachers")},
     "docs/performance.md": {
         **{
             name: THROUGHPUT

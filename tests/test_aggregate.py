@@ -946,3 +946,22 @@ def test_standing_says_who_passed_and_who_ends_above_from_the_runs():
     ]
     # runs of another budget or teacher say nothing
     assert aggregate.standing(groups, "shipped", envs) == []
+
+
+def test_shipped_teachers_block_in_table1_order_beside_the_papers_v4_teachers(tmp_path):
+    for env, ret, steps, frames in (
+        ("Swimmer-v5", 41.94, 1000, 30000),
+        ("Hopper-v4", 463.604, 165, 65000),
+        ("Ant-v4", 900.04, 1000, 50000),
+        ("HalfCheetah-v4", 1009.26, 1000, 25000),
+    ):
+        (tmp_path / env).mkdir()
+        meta = {"env_id": env, "episode_returns": [ret], "episode_lengths": [steps], "td3_frames": frames}
+        (tmp_path / env / "metadata.json").write_text(json.dumps(meta))
+    block = aggregate.block_shipped_teachers(aggregate.Source([tmp_path], tmp_path / "report"), tmp_path / "x.md")
+    assert block.splitlines()[2:] == [
+        "| HalfCheetah-v4 | 1009.3 | 1000 | 25k | 5646.7 |",
+        "| Swimmer-v5 | 41.9 | 1000 | 30k | - |",  # the paper's teachers are run on v4
+        "| Hopper-v4 | 463.6 | 165 | 65k | 1480.7 |",
+        "| Ant-v4 | 900.0 | 1000 | 50k | - |",  # not one of Table 1's envs: last
+    ]
