@@ -1080,11 +1080,15 @@ def paper_env(env: str) -> str:
     return env.split("-v")[0]
 
 
+def table1_order(env: str) -> tuple[int, str]:
+    """The sort key of a gymnasium id in Table 1's env order (other envs after, alphabetically)."""
+    rank = PAPER_ENVS.index(paper_env(env)) if paper_env(env) in PAPER_ENVS else len(PAPER_ENVS)
+    return rank, env
+
+
 def readme_envs(groups: dict, teacher: str) -> list[str]:
     """The envs with runs of ``teacher``, in Table 1's order (others after, alphabetically)."""
-    envs = {env for env, label, _ in groups if label == teacher}
-    rank = {name: index for index, name in enumerate(PAPER_ENVS)}
-    return sorted(envs, key=lambda env: (rank.get(paper_env(env), len(rank)), env))
+    return sorted({env for env, label, _ in groups if label == teacher}, key=table1_order)
 
 
 def plot_panels(path: Path, teacher: str, envs: list[str], groups: dict, methods=None) -> None:
@@ -1646,12 +1650,15 @@ def block_shipped_teachers(source: Source, target: Path) -> str:
     """The teachers shipped in ``source.roots[0]`` (``examples/teachers/<env>/``, from the ``metadata.json``
     that ``examples/make_teacher.py`` writes), in Table 1's env order, each beside the paper's teacher
     for its env on the gymnasium version the campaign runs the paper's teachers on (v4)."""
-    shipped = [json.loads(path.read_text()) for path in sorted(source.roots[0].glob("*/metadata.json"))]
-    rank = {name: index for index, name in enumerate(PAPER_ENVS)}
-    shipped.sort(key=lambda meta: (rank.get(paper_env(meta["env_id"]), len(rank)), meta["env_id"]))
+    shipped = {}
+    for path in source.roots[0].glob("*/metadata.json"):
+        meta = json.loads(path.read_text())
+        if len(meta["episode_returns"]) != 1:
+            raise ValueError(f"{path}: a shipped teacher is one episode, this has {len(meta['episode_returns'])}")
+        shipped[meta["env_id"]] = meta
     lines = ["| env | return | steps | TD3 frames | the paper's teacher |", "|---|---|---|---|---|"]
-    for meta in shipped:
-        env = meta["env_id"]
+    for env in sorted(shipped, key=table1_order):
+        meta = shipped[env]
         (ret,), (steps,) = meta["episode_returns"], meta["episode_lengths"]
         paper = PAPER_TEACHER_RETURNS.get(paper_env(env)) if env.endswith("-v4") else None
         paper_cell = "-" if paper is None else f"{paper:.1f}"

@@ -25,7 +25,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import re
 import shlex
 import statistics
 import sys
@@ -40,7 +39,7 @@ from tensordict import TensorDict
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import Compose, EnvBase, ExplorationType, GymEnv, TransformedEnv, set_exploration_type
 
-from torchrl_sail.harness import cpu_flags, cpu_model, provenance
+from torchrl_sail.harness import code_label, cpu_flags, cpu_model, provenance
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "examples"))
@@ -205,31 +204,40 @@ def layer_name(layer: str) -> str:
 
 
 def record_line(path: Path, label: str, setup: dict) -> str:
-    """Where a record of ``--out`` lies, how it was made (its command, rebuilt from what the record
-    holds) and on what."""
-    flags = [f"--env {setup['env']}"] if setup.get("env", "Hopper-v4") != "Hopper-v4" else []
-    flags += [f"--frames {setup['frames']}", f"--rounds {setup['rounds']}", f"--threads {setup['threads']}"]
-    overrides = re.search(r"--overrides (\S+)", setup.get("command", ""))
-    flags += [f"--overrides {overrides[1]}"] if overrides else []
-    flags += ["--per-transform"] if "--per-transform" in setup.get("command", "") else []
-    flags.append(f"--label {shlex.quote(label)}")
-    flags += [f"--other-load {shlex.quote(setup['other_load'])}"] if setup.get("other_load") else []
-    command = " ".join(["python benchmarks/bench_collect.py", *flags, f"--out {path}"])
-    code = setup.get("code") or (
-        f"commit {setup['commit'][:7]}" + (" (uncommitted changes)" if setup.get("dirty") else "")
-    )
+    """A record of ``--out`` for the docs: where it lies, the code it measured, its settings and machine,
+    and the command that makes it (from the settings the record holds)."""
+    words = ["python", "benchmarks/bench_collect.py"]
+    words += ["--env", setup["env"]] if setup["env"] != "Hopper-v4" else []
+    words += ["--frames", str(setup["frames"]), "--rounds", str(setup["rounds"]), "--threads", str(setup["threads"])]
+    words += ["--overrides", setup["overrides"]] if setup["overrides"] else []
+    words += ["--per-transform"] if setup["per_transform"] else []
+    words += ["--label", label, *(["--other-load", setup["other_load"]] if setup.get("other_load") else [])]
     threads = f"{setup['threads']} torch thread" + ("" if setup["threads"] == 1 else "s")
     return (
-        f"- `{path}`, record `{label}`: {setup.get('env', 'Hopper-v4')}, {setup['rounds']} rounds of {setup['frames']} "
-        f"frames, {threads}, torch {setup['torch']} on {setup['cpu_model']}; code: {code}; "
-        f"other load: {setup.get('other_load') or 'not recorded'}.\n\n  ```text\n  {command}\n  ```"
+        f"- `{path}`, record `{label}` (code: {code_label(setup)}): {setup['env']}, {setup['rounds']} rounds of "
+        f"{setup['frames']} frames, {threads}, torch {setup['torch']} on {setup['cpu_model']}; "
+        f"other load: {setup.get('other_load') or 'not recorded'}.\n\n"
+        f"  ```text\n  {shlex.join([*words, '--out', str(path)])}\n  ```"
     )
 
 
 def docs_table(path: Path, labels: list[str], added: bool = False) -> str:
-    """The docs' table of the records ``labels`` of the file ``path`` (written by ``--out``): one row per
-    layer (in the order measured), one column per record (ms per frame, the median over its rounds);
-    with ``added``, each layer's difference to the one before it, of the one record."""
+    """The docs' Markdown for records of ``--out``.
+
+    Args:
+        path: the file ``--out`` wrote.
+        labels: the records to show, one column each.
+        added: also each layer's difference to the one before it (with one record only).
+
+    Returns:
+        Each record's :func:`record_line`, then a table with one row per layer (in the order measured)
+        and one column per record: ms per frame, the median over its rounds; ``-`` where a record has
+        no such layer.
+
+    Raises:
+        KeyError: a label the file has no record of (named, with the labels it has).
+        ValueError: ``added`` with more than one record.
+    """
     records = json.loads(Path(path).read_text())
     missing = [label for label in labels if label not in records]
     if missing:
@@ -251,9 +259,17 @@ def docs_table(path: Path, labels: list[str], added: bool = False) -> str:
 
 
 def docs_ratios(path: Path, label: str, pairs: list[tuple[str, str]]) -> str:
-    """The docs' table of the time ratio of each pair of layers ``(layer, base)`` within each round of the
-    record ``label``, and their median: where the machine's speed drifts between rounds, the ratio within a
-    round is the figure."""
+    """The docs' Markdown for ratios between layers of a record of ``--out``: where the machine's speed
+    drifts between rounds, the ratio within a round is the figure.
+
+    Args:
+        path: the file ``--out`` wrote.
+        label: the record's ``--label``.
+        pairs: ``(layer, base)`` pairs: each row is ``layer``'s time over ``base``'s.
+
+    Returns:
+        The record's :func:`record_line`, then a table of each pair's ratio in every round and their median.
+    """
     record = json.loads(Path(path).read_text())[label]
     rounds = {row["layer"]: row["rounds"] for row in record["layers"]}
     lines = [
@@ -285,7 +301,7 @@ def main(argv=None) -> None:
         previous = median
     if args.out is not None:
         setup = {
-            "command": " ".join(["python", "benchmarks/bench_collect.py", *(argv or sys.argv[1:])]),
+            "command": shlex.join(["python", "benchmarks/bench_collect.py", *(argv or sys.argv[1:])]),
             "cpu_model": cpu_model(),
             "avx512_bf16_or_amx": bool({"avx512_bf16", "amx_bf16"} & set(cpu_flags())),
             "threads": args.threads,
@@ -293,6 +309,8 @@ def main(argv=None) -> None:
             "env": args.env,
             "frames": args.frames,
             "rounds": args.rounds,
+            "overrides": args.overrides,
+            "per_transform": args.per_transform,
             "other_load": args.other_load,
             "load_average_before": load_before,
             **{key: code[key] for key in ("commit", "dirty")},

@@ -35,7 +35,7 @@ from tensordict import TensorDictBase
 from torchrl.envs import ExplorationType, set_exploration_type
 
 from torchrl_sail._compat import fast_tensor_outputs, is_from_any_shortcut
-from torchrl_sail.harness import cpu_model, provenance
+from torchrl_sail.harness import code_label, cpu_model, provenance
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "examples"))
@@ -123,22 +123,30 @@ WAY_NAMES = {
 
 
 def docs_table(path: Path, label: str) -> str:
-    """The docs' table of the record ``label`` of the file ``path`` (written by ``--out``): how it was made,
-    and per way the median ms per step and the median of the rounds' time ratios to ``sequence``."""
+    """The docs' Markdown for a record of ``--out``.
+
+    Args:
+        path: the file ``--out`` wrote.
+        label: the record's ``--label``.
+
+    Returns:
+        The code it measured, its settings and machine, the command that makes it, and per way the median
+        ms per step and the median of the rounds' time ratios to ``sequence``.
+    """
     record = json.loads(Path(path).read_text())[label]
     setup = record["setup"]
-    words = ["python benchmarks/bench_eval.py", f"--env {setup['env']}", f"--episodes {setup['episodes']}"]
-    words += [f"--rounds {setup['rounds']}", f"--threads {setup['threads']}", f"--label {shlex.quote(label)}"]
-    if setup.get("other_load"):
-        words.append(f"--other-load {shlex.quote(setup['other_load'])}")
-    code = f"commit {setup['commit'][:7]}" + (" (uncommitted changes)" if setup.get("dirty") else "")
+    words = ["python", "benchmarks/bench_eval.py", "--env", setup["env"], "--episodes", str(setup["episodes"])]
+    words += ["--rounds", str(setup["rounds"]), "--threads", str(setup["threads"])]
+    words += ["--max-steps", str(setup["max_steps"])] if setup.get("max_steps") else []
+    words += ["--label", label, *(["--other-load", setup["other_load"]] if setup.get("other_load") else [])]
+    threads = f"{setup['threads']} torch thread" + ("" if setup["threads"] == 1 else "s")
     lines = [
-        f"`{path}`, record `{label}`: {setup['env']}, {setup['rounds']} rounds of {setup['episodes']} episodes, "
-        f"{setup['threads']} torch thread{'' if setup['threads'] == 1 else 's'}, torch {setup['torch']} on "
-        f"{setup['cpu_model']}; code: {code}; other load: {setup.get('other_load') or 'not recorded'}.",
+        f"`{path}`, record `{label}` (code: {code_label(setup)}): {setup['env']}, {setup['rounds']} rounds of "
+        f"{setup['episodes']} episodes, {threads}, torch {setup['torch']} on {setup['cpu_model']}; "
+        f"other load: {setup.get('other_load') or 'not recorded'}.",
         "",
         "```text",
-        " ".join(words + [f"--out {path}"]),
+        shlex.join([*words, "--out", str(path)]),
         "```",
         "",
         "| way | ms per step (median) | time vs the sequence (median of the rounds' ratios) |",
@@ -171,6 +179,7 @@ def main(argv=None) -> None:
             "torch": torch.__version__,
             "env": args.env,
             "episodes": args.episodes,
+            "max_steps": args.max_steps,
             "rounds": args.rounds,
             "other_load": args.other_load,
             "load_average_before": load_before,

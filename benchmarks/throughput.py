@@ -360,9 +360,6 @@ def whole_process_fps(runs: list[dict], frames: int) -> float | None:
 
 
 def markdown(rows: list[dict]) -> str:
-    def fmt(value, spec: str) -> str:
-        return "-" if value is None else format(value, spec)
-
     lines = [
         "| label | trainer | threads | frames/s | ms/update | ms/frame | grad steps | peak MB | frames/s vs sb3 "
         "| whole-process frames/s | whole-process vs sb3 |",
@@ -389,6 +386,16 @@ def markdown(rows: list[dict]) -> str:
 # ----------------------------------------------------------------------------- the docs' tables
 
 
+def fmt(value: float | None, spec: str) -> str:
+    """``value`` in ``format``'s ``spec``, ``-`` where it is missing."""
+    return "-" if value is None else format(value, spec)
+
+
+def plural(count: int, noun: str) -> str:
+    """``count`` and ``noun``, in the plural unless ``count`` is 1."""
+    return f"{count} {noun}" + ("" if count == 1 else "s")
+
+
 def trainer_name(trainer: str, args: dict) -> str:
     """How the docs name ``trainer`` of the invocation whose arguments were ``args``."""
     if trainer == "sb3":
@@ -400,8 +407,11 @@ def trainer_name(trainer: str, args: dict) -> str:
 
 
 def command_line(args: dict, out: Path) -> str:
-    """The command that made an invocation from its recorded ``args``, writing to ``out``; options at
-    their defaults left out, as is ``--example-root`` (a path of the machine it ran on)."""
+    """The command that made an invocation, from its recorded ``args``, writing to ``out``.
+
+    Options at their defaults are left out, as is ``--example-root`` (a path of the machine it ran
+    on: the file's ``code`` says which code ran).
+    """
     defaults = vars(make_parser().parse_args([]))
     words = ["python benchmarks/throughput.py"]
     for name in ("trainers", "threads", "rounds", "warmup", "frames", "env", "seed", "device", "sail_overrides"):
@@ -411,8 +421,9 @@ def command_line(args: dict, out: Path) -> str:
             words.append(f"--{name.replace('_', '-')} " + " ".join(shlex.quote(str(v)) for v in values))
     if args.get("whole_process"):
         words.append("--whole-process")
-    if args.get("label"):
-        words.append(f"--label {shlex.quote(args['label'])}")
+    for name in ("label", "other_load"):
+        if args.get(name):
+            words.append(f"--{name.replace('_', '-')} {shlex.quote(args[name])}")
     return " ".join(words + [f"--out {out}"])
 
 
@@ -427,27 +438,30 @@ def machine_line(info: dict) -> str:
 
 
 def docs_block(paths: list[Path]) -> str:
-    """The docs' Markdown for the invocations in ``paths`` (files written by ``--out``): how each was made
-    and on what, a table of the medians over rounds and, where there were several, one of every round.
-    Ratios are to SB3 of the same invocation and thread count; ``-`` where a figure is missing."""
+    """The docs' Markdown for invocations of this script.
 
-    def fmt(value, spec: str) -> str:
-        return "-" if value is None else format(value, spec)
+    Args:
+        paths: files written by ``--out``, in the order to show them.
+
+    Returns:
+        Per file, the code it measured, its command, its settings and machine; then a table of the
+        medians over rounds of every trainer and thread count and, where any file has several rounds,
+        one of every round. Ratios are to SB3 of the same invocation, thread count (and round);
+        ``-`` where a figure is missing.
+    """
+    from torchrl_sail.harness import code_label
 
     made, medians, rounds, several = [], [], [], False
     for path in paths:
         data = json.loads(Path(path).read_text())
         args, records = data["args"], data["records"]
         several |= args["rounds"] > 1
+        whole = f"; whole-process from runs of {args['frames']} and {2 * args['frames']} frames"
         made += [
-            f"- `{path}`, invocation `{args.get('label') or '-'}`: {args.get('env', 'Hopper-v4')}, "
-            f"{plural(args['rounds'], 'round')} of {args['frames']} timed frames after {args['warmup']} warm-up frames"
-            + (
-                f"; whole-process from runs of {args['frames']} and {2 * args['frames']} frames"
-                if args.get("whole_process")
-                else ""
-            )
-            + f"; on {machine_line(data['machine'])}.",
+            f"- `{path}`, invocation `{args.get('label') or '-'}` (code: {code_label(data)}): "
+            f"{args.get('env', 'Hopper-v4')}, {plural(args['rounds'], 'round')} of {args['frames']} timed frames "
+            f"after {args['warmup']} warm-up frames{whole if args.get('whole_process') else ''}; "
+            f"on {machine_line(data['machine'])}.",
             "",
             "  ```text",
             f"  {command_line(args, path)}",
@@ -481,12 +495,9 @@ def docs_block(paths: list[Path]) -> str:
     return "\n".join(lines)
 
 
-def plural(count: int, noun: str) -> str:
-    return f"{count} {noun}" + ("" if count == 1 else "s")
-
-
 def round_row(records: list[dict], row: dict, label: str, name: str, frames: int) -> str:
-    """The per-round figures of one row of :func:`aggregate` (a trainer at a thread count), as a table row."""
+    """The per-round figures of one row of :func:`aggregate` (a trainer at a thread count), as a table row:
+    each round's frames/s and ratio to SB3's in the same round, ``-`` for a round without the figure."""
 
     def group(trainer: str) -> list[dict]:
         return [
@@ -499,11 +510,12 @@ def round_row(records: list[dict], row: dict, label: str, name: str, frames: int
         return {r.get("round", 0): r["fps"] for r in runs if r.get("frames", frames) == frames and r.get("fps")}
 
     def cells(mine: dict[int, float], peer: dict[int, float]) -> tuple[str, str]:
-        values = ", ".join(f"{mine[rnd]:.1f}" for rnd in sorted(mine)) or "-"
-        ratios = ", ".join(f"{mine[rnd] / peer[rnd]:.2f}" for rnd in sorted(mine) if rnd in peer) or "-"
+        values = ", ".join(fmt(mine.get(rnd), ".1f") for rnd in played)
+        ratios = ", ".join(fmt(mine[rnd] / peer[rnd] if rnd in mine and rnd in peer else None, ".2f") for rnd in played)
         return values, ratios
 
     own, sb3 = group(row["trainer"]), group("sb3")
+    played = sorted({r.get("round", 0) for r in own})
     timer_cells = cells(timers(own), timers(sb3))
     process_cells = cells(whole_process_rates(own, frames), whole_process_rates(sb3, frames))
     return f"| {label} | {name} | {row['threads']} | " + " | ".join(timer_cells + process_cells) + " |"
@@ -544,7 +556,10 @@ def main(argv: list[str] | None = None) -> None:
         return
     if "sb3" in args.trainers:
         require_sb3()
+    from torchrl_sail.harness import provenance
+
     info = machine(args.device) | ({"other_load": args.other_load} if args.other_load else {})
+    code = {key: provenance(args.example_root)[key] for key in ("commit", "dirty")}  # the code sail and td3 ran
     print(", ".join(f"{k} {v}" for k, v in info.items()))
     if info["load_1min"] > 0.5:
         print(f"WARNING: 1-min load average {info['load_1min']:.2f} > 0.5: something else is running", file=sys.stderr)
@@ -563,7 +578,9 @@ def main(argv: list[str] | None = None) -> None:
     print(markdown(rows))
     args.out.parent.mkdir(parents=True, exist_ok=True)
     config = {k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items() if k != "worker"}
-    args.out.write_text(json.dumps({"machine": info, "args": config, "records": records, "table": rows}, indent=2))
+    args.out.write_text(
+        json.dumps({**code, "machine": info, "args": config, "records": records, "table": rows}, indent=2)
+    )
     print(f"wrote {args.out}")
 
 

@@ -412,14 +412,15 @@ def report(roots: list[Path]) -> str:
     return "\n".join(lines)
 
 
-def rule_main(report: Callable[[list[Path]], str], doc: str, argv: list[str] | None = None) -> int:
-    """The command line of a rule script (this one, ``hold_rule.py``, ``remedy_rule.py``): its ``report``
-    of the results folders given, printed and, with ``--out``, written (the folder made if new)."""
+def rule_main(make_report: Callable[[list[Path]], str], doc: str, argv: list[str] | None = None) -> int:
+    """The command line of a rule script (this one, ``hold_rule.py``, ``remedy_rule.py``): its report of
+    the results folders given (``make_report``), printed and, with ``--out``, written (the folder made if
+    new). ``doc`` is the script's docstring, whose first line describes it."""
     parser = argparse.ArgumentParser(description=doc.splitlines()[0])
     parser.add_argument("roots", nargs="+", type=Path, help="results folders (e.g. benchmarks/results/campaign)")
     parser.add_argument("--out", type=Path, help="also write the report to this Markdown file")
     args = parser.parse_args(argv)
-    text = report(args.roots)
+    text = make_report(args.roots)
     print(text)
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shlex
 
 import pytest
 import torch
@@ -98,10 +99,8 @@ def made_record(rounds: dict[str, list[float]], **setup) -> dict:
         rows.append({"layer": layer, "ms_per_frame": median, "added": median - previous, "rounds": values})
         previous = median
     base = {"env": "Hopper-v4", "frames": 3000, "rounds": 3, "threads": 1, "torch": "2.13.0+cpu", "cpu_model": "CPU"}
-    return {
-        "setup": base | {"command": "python benchmarks/bench_collect.py", "commit": "b" * 40} | setup,
-        "layers": rows,
-    }
+    base |= {"overrides": "", "per_transform": False, "other_load": None, "commit": "b" * 40, "dirty": False}
+    return {"setup": base | setup, "layers": rows}
 
 
 def test_docs_table_one_column_per_record_and_the_added_column(tmp_path):
@@ -109,8 +108,11 @@ def test_docs_table_one_column_per_record_and_the_added_column(tmp_path):
     first = made_record({"gymnasium": [0.1, 0.2, 0.3], "GymEnv": [0.5, 0.4, 0.6], "Collector": [1.0, 1.2, 1.1]})
     second = made_record(
         {"gymnasium": [0.3, 0.3, 0.3], "EnvBase floor": [0.35, 0.45, 0.4], "GymEnv": [0.9, 0.7, 0.8]},
-        command="python benchmarks/bench_collect.py --overrides device=cuda --per-transform",
+        overrides="device=cuda optim.cudagraphs=true",
+        per_transform=True,
         other_load="two runs",
+        code="commit 1234567 (a note)",
+        threads=2,
     )
     path.write_text(json.dumps({"a": first, "b b": second}))
     text = bench_collect.docs_table(path, ["a", "b b"])
@@ -123,10 +125,22 @@ def test_docs_table_one_column_per_record_and_the_added_column(tmp_path):
         f"| {bench_collect.LAYER_NAMES['EnvBase floor']} | - | 0.40 |",
     ]
     commands = [line.strip() for line in text.splitlines() if "python benchmarks/bench_collect.py" in line]
-    assert commands[1] == (
-        "python benchmarks/bench_collect.py --frames 3000 --rounds 3 --threads 1 --overrides device=cuda "
-        f"--per-transform --label 'b b' --other-load 'two runs' --out {path}"
-    )
+    for command, label in zip(commands, ("a", "b b"), strict=True):  # each parses back to its record's settings
+        args = bench_collect.parse_args(shlex.split(command)[2:])
+        setup = json.loads(path.read_text())[label]["setup"]
+        assert (args.frames, args.rounds, args.threads, args.overrides) == tuple(
+            setup[key] for key in ("frames", "rounds", "threads", "overrides")
+        )
+        assert (args.per_transform, args.other_load, args.label, args.out) == (
+            setup["per_transform"],
+            setup["other_load"],
+            label,
+            path,
+        )
+    lines = text.splitlines()
+    assert "record `a` (code: commit bbbbbbb): Hopper-v4, 3 rounds of 3000 frames, 1 torch thread," in lines[0]
+    assert "other load: not recorded." in lines[0]
+    assert "(code: commit 1234567 (a note)): Hopper-v4" in text and "2 torch threads" in text  # the note first
     added = bench_collect.docs_table(path, ["a"], added=True).splitlines()[-2:]
     assert added == [
         f"| {bench_collect.LAYER_NAMES['GymEnv']} | 0.50 | 0.30 |",
@@ -134,7 +148,7 @@ def test_docs_table_one_column_per_record_and_the_added_column(tmp_path):
     ]
 
 
-def test_docs_table_names_a_missing_record_and_refuses_added_over_two(tmp_path):
+def test_docs_table_names_a_missing_record_and_refuses_added_over_several(tmp_path):
     path = tmp_path / "collect.json"
     path.write_text(json.dumps({"a": made_record({"gymnasium": [0.1]})}))
     with pytest.raises(KeyError, match=r"collect.json has no record 'c'; it has 'a'"):

@@ -54,7 +54,13 @@ def test_a_way_that_plays_other_episodes_in_a_later_round_fails(monkeypatch):
 def test_docs_table_from_a_made_record(tmp_path):
     path = tmp_path / "eval.json"
     setup = {"env": "HalfCheetah-v4", "episodes": 2, "rounds": 3, "threads": 1, "torch": "2.13.0+cpu"}
-    setup |= {"cpu_model": "Some CPU", "other_load": "none (paused)", "commit": "a" * 40, "dirty": True}
+    setup |= {
+        "cpu_model": "Some CPU",
+        "other_load": "none (paused)",
+        "commit": "a" * 40,
+        "dirty": True,
+        "max_steps": 50,
+    }
     ways = [
         {"way": "sequence", "ms_per_step": 3.004, "vs_sequence": 1.0},
         {"way": "sequence, shortcut", "ms_per_step": 2.456, "vs_sequence": 0.8861},
@@ -71,5 +77,10 @@ def test_docs_table_from_a_made_record(tmp_path):
     command = next(line for line in text.splitlines() if line.startswith("python benchmarks/bench_eval.py"))
     args = bench_eval.parse_args(shlex.split(command)[2:])  # the rebuilt command parses to the record's setup
     assert (args.env, args.episodes, args.rounds, args.threads) == ("HalfCheetah-v4", 2, 3, 1)
-    assert (args.label, args.other_load, args.out) == ("HalfCheetah, 1 thread", "none (paused)", path)
+    assert (args.label, args.other_load, args.out, args.max_steps) == (
+        "HalfCheetah, 1 thread",
+        "none (paused)",
+        path,
+        50,
+    )
     assert "commit aaaaaaa (uncommitted changes)" in text and "on Some CPU" in text

@@ -17,6 +17,7 @@ from torchrl.checkpoint import Checkpoint
 from torchrl_sail.harness import (
     add_evaluation,
     checkpoint_dir,
+    code_label,
     fall_share,
     is_finished,
     last_checkpoint,
@@ -521,3 +522,10 @@ def test_cpu_flags_reads_proc_cpuinfo(monkeypatch, tmp_path):
     assert machine.cpu_model() == "Some CPU"
     cpuinfo.unlink()
     assert machine.cpu_flags() == [] and machine.cpu_model() is None
+
+
+def test_code_label_prefers_the_note_then_the_commit():
+    assert code_label({"code": "commit abc1234 (a note)", "commit": "f" * 40}) == "commit abc1234 (a note)"
+    assert code_label({"commit": "0123456789" * 4, "dirty": False}) == "commit 0123456"
+    assert code_label({"commit": "0123456789" * 4, "dirty": True}) == "commit 0123456 (uncommitted changes)"
+    assert code_label({"commit": None, "dirty": None}) == "not recorded"

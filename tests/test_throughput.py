@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shlex
 import sys
 
 import pytest
@@ -218,39 +219,63 @@ def made_invocation(path, records, **args):
     base |= {"trainers": ["sail", "sb3"], "sail_overrides": "", "label": "x", "device": "cpu", "whole_process": True}
     machine = {"cpu_model": "Some CPU", "cpu_flags": ["avx2"], "cpu_count": 2, "load_1min": 0.25, "python": "3.11.7"}
     machine |= {"torch": "2.13.0+cpu", "torchrl": "0.14.1", "stable-baselines3": "2.9.2"}
-    path.write_text(json.dumps({"machine": machine, "args": base | args, "records": records}))
+    data = {"commit": "c" * 40, "dirty": False, "machine": machine, "args": base | args, "records": records}
+    path.write_text(json.dumps(data))
     return path
 
 
+def timed(trainer, threads, fps, rnd, t_frames, t_twice, label="x"):
+    """The two runs of a round: ``--frames`` (2000) timed at ``fps``, and the process times of both runs."""
+    return [
+        rec(trainer, threads, fps, rnd, frames=2000, process_seconds=t_frames, label=label),
+        rec(trainer, threads, fps + 1, rnd, frames=4000, process_seconds=t_twice, label=label),
+    ]
+
+
 def test_docs_block_medians_rounds_and_the_command(tmp_path):
-    # two rounds; whole-process per round: 2000 / (T(4000) - T(2000))
-    records = [
-        rec("sail", 1, 60.0, 0, frames=2000, process_seconds=50.0, label="x"),
-        rec("sail", 1, 61.0, 0, frames=4000, process_seconds=70.0, label="x"),  # 100 frames/s
-        rec("sb3", 1, 50.0, 0, frames=2000, process_seconds=60.0, label="x"),
-        rec("sb3", 1, 51.0, 0, frames=4000, process_seconds=100.0, label="x"),  # 50
-        rec("sail", 1, 64.0, 1, frames=2000, process_seconds=50.0, label="x"),
-        rec("sail", 1, 65.0, 1, frames=4000, process_seconds=90.0, label="x"),  # 50
-        rec("sb3", 1, 40.0, 1, frames=2000, process_seconds=60.0, label="x"),
-        rec("sb3", 1, 41.0, 1, frames=4000, process_seconds=100.0, label="x"),  # 50
+    # whole-process per round: 2000 / (T(4000) - T(2000))
+    x = [
+        *timed("sail", 1, 60.0, 0, 50.0, 70.0),  # whole-process 100
+        *timed("sb3", 1, 50.0, 0, 60.0, 100.0),  # 50
+        *timed("sail", 1, 64.0, 1, 50.0, 100.0),  # 40
+        *timed("sb3", 1, 40.0, 1, 60.0, 140.0),  # 25
+        *timed("sail", 2, 90.0, 0, 40.0, 60.0),  # 100
+        *timed("sb3", 2, 60.0, 0, 50.0, 90.0),  # 50
+        *timed("sail", 2, 80.0, 1, 40.0, 60.0),  # 100
+        *timed("sb3", 2, 80.0, 1, 50.0, 90.0),  # 50
     ]
-    path = made_invocation(tmp_path / "t.json", records, sail_overrides="optim.precision=bf16 a=b")
-    lines = throughput.docs_block([path]).splitlines()
-    rows = [line for line in lines if line.startswith("| x |")]
-    # medians: sail 62 (timers) and 75 (whole-process), sb3 45 and 50
-    assert rows[:2] == [
-        "| x | SAIL, `optim.precision=bf16 a=b` | 1 | 62.0 | 1.38 | 75.0 | 1.50 | 10.00 | 1.00 | 500 |",
-        "| x | SB3 TD3 | 1 | 45.0 | 1.00 | 50.0 | 1.00 | 10.00 | 1.00 | 500 |",
+    y = [rec("sail", 1, 30.0, 0, label="y"), rec("sb3", 1, 20.0, 0, label="y"), rec("sail", 1, 34.0, 1, label="y")]
+    y.append({"trainer": "sb3", "threads": 1, "round": 1, "label": "y", "error": "exit 1"})  # SB3 failed round 1
+    y.append(rec("sb3", 1, 10.0, 1, label="z"))  # another label's run (files merged): not y's peer
+    first = made_invocation(tmp_path / "x.json", x, threads=[1, 2], sail_overrides="optim.precision=bf16 a=b")
+    second = made_invocation(tmp_path / "y.json", y, label="y", whole_process=False, other_load="two runs")
+    lines = throughput.docs_block([first, second]).splitlines()
+    rows = [line for line in lines if line.startswith(("| x |", "| y |"))]
+    name = "SAIL, `optim.precision=bf16 a=b`"
+    # medians, 1 thread: timers 62 against 45; whole-process 70 against 37.5 (the ratio of the medians,
+    # 1.87, not the median of the rounds' ratios, 1.80); 2 threads: 85 against 70, 100 against 50
+    assert rows[:4] == [
+        f"| x | {name} | 1 | 62.0 | 1.38 | 70.0 | 1.87 | 10.00 | 1.00 | 500 |",
+        "| x | SB3 TD3 | 1 | 45.0 | 1.00 | 37.5 | 1.00 | 10.00 | 1.00 | 500 |",
+        f"| x | {name} | 2 | 85.0 | 1.21 | 100.0 | 2.00 | 10.00 | 1.00 | 500 |",
+        "| x | SB3 TD3 | 2 | 70.0 | 1.00 | 50.0 | 1.00 | 10.00 | 1.00 | 500 |",
     ]
-    # round by round: 60/50, 64/40; 100/50, 50/50
-    assert (
-        rows[2] == "| x | SAIL, `optim.precision=bf16 a=b` | 1 | 60.0, 64.0 | 1.20, 1.60 | 100.0, 50.0 | 2.00, 1.00 |"
-    )
-    command = next(line.strip() for line in lines if "python benchmarks/throughput.py" in line)
-    assert command == (
-        "python benchmarks/throughput.py --trainers sail sb3 --threads 1 --rounds 2 --warmup 1000 --frames 2000 "
-        f"--sail-overrides 'optim.precision=bf16 a=b' --whole-process --label x --out {path}"
-    )
+    assert rows[4:6] == [
+        "| y | SAIL (defaults) | 1 | 32.0 | 1.60 | - | - | 10.00 | 1.00 | 500 |",  # SB3's one round: 20
+        "| y | SB3 TD3 | 1 | 20.0 | 1.00 | - | - | 10.00 | 1.00 | 500 |",
+    ]
+    # round by round, each ratio to SB3's round at the same thread count and in the same file
+    assert rows[6] == f"| x | {name} | 1 | 60.0, 64.0 | 1.20, 1.60 | 100.0, 40.0 | 2.00, 1.60 |"
+    assert rows[8] == f"| x | {name} | 2 | 90.0, 80.0 | 1.50, 1.00 | 100.0, 100.0 | 2.00, 2.00 |"
+    assert rows[10] == "| y | SAIL (defaults) | 1 | 30.0, 34.0 | 1.50, - | -, - | -, - |"  # SB3 failed round 1
+    assert rows[11] == "| y | SB3 TD3 | 1 | 20.0, - | 1.00, - | -, - | -, - |"
+    # the commands parse back to each file's settings
+    commands = [line.strip() for line in lines if line.strip().startswith("python benchmarks/throughput.py")]
+    for command, path in zip(commands, (first, second), strict=True):
+        recorded = json.loads(path.read_text())["args"]
+        parsed = vars(throughput.make_parser().parse_args(shlex.split(command)[2:]))
+        assert {key: parsed[key] for key in recorded} == recorded and parsed["out"] == path
+    assert "(code: commit ccccccc): Hopper-v4, 2 rounds" in lines[0]
     assert "Some CPU (2 CPUs; CPU flags: avx2); Python 3.11.7" in lines[0]
 
 

@@ -11,7 +11,7 @@ the ``harness`` extra, ``pip install -e ".[harness]"``.
 """
 
 from torchrl_sail._compat import native_bf16_matmul, render_fps  # what the scripts read through private APIs
-from torchrl_sail.harness.machine import MATMUL_FLAGS, cpu_flags, cpu_model, provenance
+from torchrl_sail.harness.machine import MATMUL_FLAGS, code_label, cpu_flags, cpu_model, provenance
 from torchrl_sail.harness.runs import (
     BEST_EVALUATED_POLICY,
     BEST_POLICY,
@@ -66,6 +66,7 @@ __all__ = [
     "add_evaluation",
     "checkpoint_dir",
     "checkpoint_frames",
+    "code_label",
     "config_additions",
     "config_changes",
     "cpu_flags",

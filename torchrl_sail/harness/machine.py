@@ -39,6 +39,24 @@ def provenance(code_dir: Path | None = None) -> dict:
     }
 
 
+def code_label(record: dict) -> str:
+    """The code a benchmark record measured, as a report names it.
+
+    Args:
+        record: a record's setup: a ``code`` note where it has one, else the ``commit`` and ``dirty`` of
+            :func:`provenance`.
+
+    Returns:
+        The ``code`` note; else ``commit <7 hex digits>``, with ``(uncommitted changes)`` when ``dirty``;
+        else ``not recorded``.
+    """
+    if record.get("code"):
+        return record["code"]
+    if record.get("commit"):
+        return f"commit {record['commit'][:7]}" + (" (uncommitted changes)" if record.get("dirty") else "")
+    return "not recorded"
+
+
 def _version(package: str) -> str | None:
     """The installed version of ``package`` (``None`` when it runs from a checkout without being installed)."""
     try:
