@@ -80,7 +80,7 @@ def make_parser() -> argparse.ArgumentParser:
         "--whole-process", action="store_true", help="also run 2 x --frames: frames/s from the process times"
     )
     parser.add_argument("--out", type=Path, default=REPO / "benchmarks" / "results" / "throughput" / "throughput.json")
-    parser.add_argument("--other-load", default=None, help="what else ran on the machine, kept with the machine")
+    parser.add_argument("--other-load", default=None, help="what else ran on the machine, kept with the arguments")
     parser.add_argument("--worker", choices=["sb3"], help=argparse.SUPPRESS)
     return parser
 
@@ -433,8 +433,7 @@ def machine_line(info: dict) -> str:
     gpu_name = f"{info['gpu']}, " if info.get("gpu") else ""
     versions = ", ".join(f"{name} {info[name.lower()]}" for name in ("Python", "torch", "torchrl", "stable-baselines3"))
     load = f"1-minute load average {info['load_1min']:.2f} at the start"
-    other = f"; other load: {info['other_load']}" if info.get("other_load") else ""
-    return f"{gpu_name}{info['cpu_model']} ({info['cpu_count']} CPUs; CPU flags: {flags}); {versions}; {load}{other}"
+    return f"{gpu_name}{info['cpu_model']} ({info['cpu_count']} CPUs; CPU flags: {flags}); {versions}; {load}"
 
 
 def docs_block(paths: list[Path]) -> str:
@@ -457,11 +456,12 @@ def docs_block(paths: list[Path]) -> str:
         args, records = data["args"], data["records"]
         several |= args["rounds"] > 1
         whole = f"; whole-process from runs of {args['frames']} and {2 * args['frames']} frames"
+        other = f"; other load: {args['other_load']}" if args.get("other_load") else ""
         made += [
             f"- `{path}`, invocation `{args.get('label') or '-'}` (code: {code_label(data)}): "
             f"{args.get('env', 'Hopper-v4')}, {plural(args['rounds'], 'round')} of {args['frames']} timed frames "
             f"after {args['warmup']} warm-up frames{whole if args.get('whole_process') else ''}; "
-            f"on {machine_line(data['machine'])}.",
+            f"on {machine_line(data['machine'])}{other}.",
             "",
             "  ```text",
             f"  {command_line(args, path)}",
@@ -558,7 +558,7 @@ def main(argv: list[str] | None = None) -> None:
         require_sb3()
     from torchrl_sail.harness import provenance
 
-    info = machine(args.device) | ({"other_load": args.other_load} if args.other_load else {})
+    info = machine(args.device)
     code = {key: provenance(args.example_root)[key] for key in ("commit", "dirty")}  # the code sail and td3 ran
     print(", ".join(f"{k} {v}" for k, v in info.items()))
     if info["load_1min"] > 0.5:

@@ -277,6 +277,7 @@ def test_docs_block_medians_rounds_and_the_command(tmp_path):
         assert {key: parsed[key] for key in recorded} == recorded and parsed["out"] == path
     assert "(code: commit ccccccc): Hopper-v4, 2 rounds" in lines[0]
     assert "Some CPU (2 CPUs; CPU flags: avx2); Python 3.11.7" in lines[0]
+    assert "at the start; other load: two runs." in next(line for line in lines if "y.json`" in line)
 
 
 def test_docs_block_one_round_without_sb3_and_on_a_gpu(tmp_path):
