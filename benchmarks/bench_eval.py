@@ -1,4 +1,4 @@
-"""What one evaluation step costs: the example's deterministic episodes, played three ways.
+"""What one evaluation step costs: the example's deterministic episodes, played four ways.
 
     python benchmarks/bench_eval.py [--env HalfCheetah-v4] [--episodes 3] [--rounds 3] [--threads 1] \
         [--out benchmarks/results/collect/eval.json]
@@ -12,10 +12,16 @@ and is timed per env step; the ways alternate within each round. Reported: the m
   ``TensorDict.from_any``;
 - ``sequence, shortcut``: the same with ``torchrl_sail._compat.fast_tensor_outputs`` applied;
 - ``one module, shortcut``: ``examples/run_utils.py``'s ``evaluate_episodes`` (the actor as one
-  ``TD3ExplorationPolicy`` without noise) with the shortcut: what the training scripts run.
+  ``TD3ExplorationPolicy`` without noise) with the shortcut, on one env: the training scripts'
+  evaluations with ``eval.vectorized=false``;
+- ``at once``: the same on a batched env of ``--episodes`` envs (``make_sail_env(num_envs=...)``),
+  one episode each: the training scripts' evaluations (``eval.vectorized=true``, the default). Its
+  time per step counts the episodes' own steps, not those of an env that ended early and waits.
 
-The record also holds each way's returns: a way that played other episodes than ``sequence``
-fails the run.
+The record also holds the returns: a sequential way that played other episodes than ``sequence``
+fails the run, and so does ``at once`` if a round plays other episodes than its first round. Its
+env ``i`` is seeded ``i``, so its episodes are not the sequential ways' (env ``0``'s, one after
+another).
 """
 
 from __future__ import annotations
@@ -44,7 +50,7 @@ from config_schema import register_config_schema  # noqa: E402
 from run_utils import evaluate_episodes  # noqa: E402
 from utils import make_agent, make_env  # noqa: E402
 
-WAYS = ("sequence", "sequence, shortcut", "one module, shortcut")
+WAYS = ("sequence", "sequence, shortcut", "one module, shortcut", "at once")
 
 
 def parse_args(argv=None) -> argparse.Namespace:
@@ -76,7 +82,7 @@ def play(way: str, env, actor, episodes: int, max_steps: int) -> tuple[float, in
     set_shortcut(way != "sequence")
     env.set_seed(0)
     start = time.perf_counter()
-    if way == "one module, shortcut":
+    if way in ("one module, shortcut", "at once"):
         results = evaluate_episodes(env, actor, episodes, max_steps)
         returns, steps = [r["dense_return"] for r in results], sum(r["length"] for r in results)
     else:
@@ -94,6 +100,7 @@ def measure(args) -> tuple[dict[str, list[float]], dict[str, list[float]]]:
     with initialize_config_dir(str(REPO / "conf"), version_base="1.3"):
         cfg = compose("config", [f"env={args.env}"])
     env = make_env(cfg, 10_000)
+    envs = {way: env for way in WAYS} | {"at once": make_env(cfg, 10_000, num_envs=args.episodes)}
     actor = make_agent(cfg, env)[0]
     max_steps = args.max_steps or cfg.env.max_episode_steps
     ms, returns = {way: [] for way in WAYS}, {}
@@ -101,11 +108,12 @@ def measure(args) -> tuple[dict[str, list[float]], dict[str, list[float]]]:
     try:
         for _ in range(args.rounds):
             for way in WAYS:
-                seconds, steps, played = play(way, env, actor, args.episodes, max_steps)
+                seconds, steps, played = play(way, envs[way], actor, args.episodes, max_steps)
                 ms[way].append(1e3 * seconds / steps)
                 first = returns.setdefault(way, played)
-                # every round of every way plays the same episodes: the ways differ in time only
-                if played != first or played != returns["sequence"]:
+                # every round of every way plays the same episodes (the sequential ways the same as
+                # each other): the ways differ in time only
+                if played != first or (way != "at once" and played != returns["sequence"]):
                     raise RuntimeError(
                         f"bench_eval: {way!r} played other episodes: {played} against {returns['sequence']}"
                     )
@@ -119,6 +127,7 @@ WAY_NAMES = {
     "sequence": "TorchRL's rollout with the actor's sequence",
     "sequence, shortcut": "+ the plain-tensor shortcut",
     "one module, shortcut": "the example's `evaluate_episodes`: one module + the shortcut",
+    "at once": "the same on a batched env, one episode per env (`eval.vectorized`)",
 }
 
 
@@ -186,7 +195,12 @@ def main(argv=None) -> None:
             **{key: code[key] for key in ("commit", "dirty")},
         }
         records = json.loads(args.out.read_text()) if args.out.exists() else {}
-        records[args.label] = {"setup": setup, "ways": rows, "returns": returns["sequence"]}
+        records[args.label] = {
+            "setup": setup,
+            "ways": rows,
+            "returns": returns["sequence"],
+            "returns_at_once": returns["at once"],
+        }
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(json.dumps(records, indent=1) + "\n")
 

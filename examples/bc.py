@@ -37,7 +37,7 @@ from run_utils import (
 )
 from torchrl.checkpoint import Checkpoint, GlobalRNGState
 from torchrl.objectives import BCLoss
-from utils import make_agent, make_env, make_teacher
+from utils import make_agent, make_env, make_eval_env, make_teacher
 from video import log_video, make_render_env
 
 from torchrl_sail import DivergenceCheck
@@ -52,7 +52,7 @@ def main(cfg):  # noqa: F821
     if resuming is None:
         return
 
-    env = make_env(cfg, cfg.seed + 10_000)  # evaluation only
+    env = make_env(cfg, cfg.seed)  # its specs: BC trains offline
     teacher, teacher_return, teacher_source = make_teacher(cfg, env)
     actor, _, _ = make_agent(cfg, env)
     loss = BCLoss(actor, loss_function="l2")
@@ -88,7 +88,8 @@ def main(cfg):  # noqa: F821
             log_metrics(loggers, {"bc/loss": out["loss_bc"]}, step + 1)  # x axis: BC steps
     if run["gradient_steps"] < steps:
         run["gradient_steps"], run["train_seconds"] = steps, time.time() - start
-        returns = actor_returns(env, actor, None, cfg.eval.episodes, cfg.env.max_episode_steps)
+        eval_env = make_eval_env(cfg, cfg.seed + 10_000, cfg.eval.episodes)
+        returns = actor_returns(eval_env, actor, None, cfg.eval.episodes, cfg.env.max_episode_steps)
         metrics = evaluation_metrics(returns, teacher_return)
         add_evaluation(run, 0, metrics["eval/return"], teacher_return)
         log_metrics(loggers, metrics, 0)

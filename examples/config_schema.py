@@ -386,6 +386,9 @@ class BestPolicyConfig:
 class EvalConfig:
     every_frames: int = 10_000  # deterministic evaluation cadence (the authors' code has none by default)
     episodes: int = 5
+    # true: an evaluation's episodes run at once, on a batched env of `episodes` envs seeded
+    # seed, seed + 1, ... (several times less time per step) | false: one env, one episode after another
+    vectorized: bool = True
     # the actor a run evaluates, keeps as its best policy and ships: online | target | average
     actor: EvaluatedActor = EvaluatedActor.online
     # also every other actor the run has (eval/return_online, eval/return_target,
@@ -437,7 +440,11 @@ class EvaluateConfig:
     """``conf/evaluate.yaml``: ``examples/evaluate.py``'s settings."""
 
     run_dir: str = MISSING  # a run folder written by a training script (config.yaml + checkpoint/)
-    episodes: int = 10  # deterministic episodes, each from a fresh reset of one seeded env
+    episodes: int = 10  # deterministic episodes
+    # true: at once, on a batched env whose env i is seeded seed + i | false: one after another, on
+    # one env seeded seed | null: as the run's own evaluations (its eval.vectorized; false for runs
+    # saved before it). Episode 0 starts where the video's does either way.
+    vectorized: bool | None = None
     # last: the run's last checkpoint | best: the policy it kept as its best by the SAIL authors' rule
     # (best_policy.pt) | best_evaluated: the policy at its best periodic evaluation (best_evaluated_policy.pt)
     policy: EvaluatedPolicy = EvaluatedPolicy.last

@@ -7,7 +7,10 @@
 
 The run's ``config.yaml`` rebuilds its env and actor (any method: ``sail_td3.py``, ``gail.py``,
 ``bc.py``), the checkpoint's weights are loaded, and ``episodes`` deterministic episodes run on a
-fresh seed (the run's seed + 20000 unless ``seed`` is given). The dense return (what the paper
+fresh seed (the run's seed + 20000 unless ``seed`` is given), at once on a batched env whose env
+``i`` is seeded ``seed + i`` when the run's evaluations were (``eval.vectorized``; ``vectorized=``
+says otherwise), else one after another on one env seeded ``seed``: as the run's own final
+evaluation of its kept policies, whose figures in ``summary.json`` come back. The dense return (what the paper
 reports), the delayed reward r_e (what the learner saw) and the episode length are printed and
 written with their mean, std, min and max to ``<run_dir>/evaluation.json``. ``policy=best``
 evaluates the policy the run kept as its best by its own training returns (``best_policy.pt``,
@@ -40,7 +43,15 @@ from config_schema import SAILConfig, register_config_schema
 from omegaconf import OmegaConf
 from run_utils import evaluate_episodes, load_kept_policy, make_actor_average, seed_everything
 from torchrl.checkpoint import Checkpoint
-from utils import copy_observation_norm, make_agent, make_discriminator, make_env, make_losses, make_ppo_models
+from utils import (
+    copy_observation_norm,
+    make_agent,
+    make_discriminator,
+    make_env,
+    make_eval_env,
+    make_losses,
+    make_ppo_models,
+)
 from video import make_render_env, record_episode, video_fps, write_video
 
 from torchrl_sail import observation_normalizer
@@ -49,6 +60,8 @@ from torchrl_sail.harness import BEST_EVALUATED_POLICY, BEST_POLICY, CONFIG, che
 
 register_config_schema()
 
+# a run saved before these settings existed ran as these values say (not as the schema's defaults)
+SAVED_BEFORE = {"eval.vectorized": False}
 # policy=: the file of each policy a run keeps beside its checkpoint, and how the report names it
 KEPT_POLICIES = {"best": BEST_POLICY, "best_evaluated": BEST_EVALUATED_POLICY}
 POLICY_LABELS = {"last": "checkpoint", "best": "best policy", "best_evaluated": "best evaluated policy"}
@@ -69,11 +82,14 @@ def load_run(run_dir: Path):
         )
     run = {}
     Checkpoint(run=run).load(checkpoint, components=["run"])
-    # over the schema's defaults: a run saved before a setting existed gets its default (and keys
-    # since removed are kept, unread)
-    defaults = OmegaConf.structured(SAILConfig)
+    # over the schema's defaults: a run saved before a setting existed gets its default, or the
+    # value it ran with (SAVED_BEFORE); keys since removed are kept, unread
+    defaults, saved = OmegaConf.structured(SAILConfig), OmegaConf.load(config)
     OmegaConf.set_struct(defaults, False)
-    return OmegaConf.merge(defaults, OmegaConf.load(config)), run
+    for key, value in SAVED_BEFORE.items():
+        if OmegaConf.select(saved, key) is None:
+            OmegaConf.update(saved, key, value)
+    return OmegaConf.merge(defaults, saved), run
 
 
 def load_actor(cfg, env, checkpoint: Path, which: str = "online", kept_policy: Path | None = None):
@@ -195,12 +211,18 @@ def main(args):  # noqa: F821
         args.actor = cfg.eval.actor  # the actor the run's own evaluations use
     out = Path(args.out) if args.out else run_dir / "evaluation.json"
     check_args(args, cfg)
+    if args.vectorized is not None:
+        cfg.eval.vectorized = args.vectorized
     seed_everything(seed)
-    env = make_env(cfg, seed)
+    env = make_env(cfg, seed)  # the actor's specs (and a PPO actor's normaliser)
     kept = KEPT_POLICIES.get(str(args.policy))
     kept_policy = run_dir / kept if kept is not None else None
     actor = load_actor(cfg, env, checkpoint_dir(run_dir), str(args.actor), kept_policy=kept_policy)
-    episodes = evaluate_episodes(env, actor, args.episodes, cfg.env.max_episode_steps, keep_rollouts=bool(args.export))
+    eval_env = make_eval_env(cfg, seed, args.episodes)
+    copy_observation_norm(env, eval_env)  # a PPO actor's frozen statistics (others: nothing)
+    episodes = evaluate_episodes(
+        eval_env, actor, args.episodes, cfg.env.max_episode_steps, keep_rollouts=bool(args.export)
+    )
 
     result = {
         "run_dir": str(run_dir),
@@ -214,6 +236,7 @@ def main(args):  # noqa: F821
         "actor": str(args.actor),
         "seed": seed,
         "episodes": args.episodes,
+        "vectorized": bool(cfg.eval.vectorized),
         **{key: stats([e[key] for e in episodes]) for key in ("dense_return", "delayed_reward", "length")},
     }
     if args.video:

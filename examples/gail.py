@@ -63,6 +63,7 @@ from utils import (
     make_discriminator,
     make_discriminator_loss,
     make_env,
+    make_eval_env,
     make_ppo_models,
     make_replay,
     make_reward,
@@ -103,7 +104,7 @@ def main(cfg):  # noqa: F821
         return
 
     p, d, r = cfg.algo.ppo, cfg.optim.discriminator, cfg.algo.reward
-    env, eval_env = make_env(cfg, cfg.seed), make_env(cfg, cfg.seed + 10_000)
+    env, eval_env = make_env(cfg, cfg.seed), make_eval_env(cfg, cfg.seed + 10_000, cfg.eval.episodes)
     teacher, teacher_return, teacher_source = make_teacher(cfg, env)
     actor, critic = make_ppo_models(cfg, env)
     discriminator = make_discriminator(cfg, env)

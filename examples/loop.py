@@ -457,14 +457,15 @@ class Evaluations:
         return metrics
 
 
-def make_eval_envs(cfg: DictConfig, make_env) -> dict:
-    """The evaluations' envs, ``{"evaluated": env, "others": {actor name: env}}``: with
-    ``eval.other_actor``, each other actor's episodes start where the evaluated one's do (same
-    seed, an env of its own)."""
+def make_eval_envs(cfg: DictConfig, make_eval_env) -> dict:
+    """The evaluations' envs (``make_eval_env(cfg, seed, episodes)``, :func:`utils.make_eval_env`),
+    ``{"evaluated": env, "others": {actor name: env}}``: with ``eval.other_actor``, each other
+    actor's episodes start where the evaluated one's do (same seed, an env of its own)."""
     others = [name for name in actor_names(cfg) if name != cfg.eval.actor] if cfg.eval.other_actor else []
+    seed, episodes = cfg.seed + 10_000, cfg.eval.episodes
     return {
-        "evaluated": make_env(cfg, cfg.seed + 10_000),
-        "others": {name: make_env(cfg, cfg.seed + 10_000) for name in others},
+        "evaluated": make_eval_env(cfg, seed, episodes),
+        "others": {name: make_eval_env(cfg, seed, episodes) for name in others},
     }
 
 

@@ -112,9 +112,19 @@ def one_module_policy(actor):
 @torch.no_grad()
 def evaluate_episodes(env, actor, episodes: int, max_steps: int, *, keep_rollouts: bool = False) -> list[dict]:
     """Deterministic episodes: the dense return, the delayed reward r_e and the length of each
-    (and its ``"rollout"`` with ``keep_rollouts``)."""
-    results, policy = [], one_module_policy(actor)
+    (and its ``"rollout"`` with ``keep_rollouts``).
+
+    On one env (``batch_size=[]``), the episodes run one after the other. On a batched env
+    (``make_sail_env(num_envs=episodes)``, :func:`utils.make_eval_env`) they run at once, one
+    episode per env, until every one has ended or ``max_steps`` steps have run (an env that ends
+    early is reset and its next episode ignored): the same episodes as one env seeded like each
+    env, up to the float rounding of the actor's batched forward pass.
+    """
+    policy = one_module_policy(actor)
     with set_exploration_type(ExplorationType.DETERMINISTIC):
+        if env.batch_size:
+            return episodes_at_once(env, policy, episodes, max_steps, keep_rollouts=keep_rollouts)
+        results = []
         for _ in range(episodes):
             rollout = env.rollout(max_steps, policy, break_when_any_done=True)
             results.append(
@@ -126,6 +136,42 @@ def evaluate_episodes(env, actor, episodes: int, max_steps: int, *, keep_rollout
                 }
             )
     return results
+
+
+def episodes_at_once(env, policy, episodes: int, max_steps: int, *, keep_rollouts: bool = False) -> list[dict]:
+    """:func:`evaluate_episodes` on a batched env of ``episodes`` envs, one episode each."""
+    if tuple(env.batch_size) != (episodes,):
+        raise ValueError(
+            f"a batched env plays one episode per env: batch_size {tuple(env.batch_size)} for {episodes} episodes"
+        )
+    running = torch.ones(episodes, dtype=torch.bool)
+    dense, delayed = torch.zeros(episodes), torch.zeros(episodes)
+    length = torch.full((episodes,), max_steps)
+    steps, td = [], env.reset()
+    for step in range(max_steps):
+        td, root = env.step_and_maybe_reset(policy(td))
+        now = td["next"]
+        delayed += torch.where(running, now["reward"].view(episodes), 0.0)
+        # an episode's return is read where it ends; one cut by max_steps, after the last step
+        ended = running & now["done"].view(episodes) if step < max_steps - 1 else running
+        dense = torch.where(ended, now["episode_return"].view(episodes), dense)
+        length = torch.where(ended, step + 1, length)
+        running &= ~ended
+        if keep_rollouts:
+            steps.append(td)
+        if not running.any():
+            break
+        td = root
+    rollouts = torch.stack(steps, dim=1) if keep_rollouts else None
+    return [
+        {
+            "dense_return": float(dense[i]),
+            "delayed_reward": float(delayed[i]),
+            "length": int(length[i]),
+            **({"rollout": rollouts[i, : int(length[i])]} if keep_rollouts else {}),
+        }
+        for i in range(episodes)
+    ]
 
 
 def evaluate(env, actor, episodes: int, max_steps: int) -> float:
@@ -405,16 +451,17 @@ class BestEvaluatedPolicy(KeptPolicy):
     score_name = "periodic_eval_return"
 
 
-def evaluate_kept_policy(cfg: DictConfig, kept: KeptPolicy, actor, make_env) -> dict:
+def evaluate_kept_policy(cfg: DictConfig, kept: KeptPolicy, actor, make_eval_env) -> dict:
     """``kept``'s record and, once a policy is kept, its ``eval.best_policy.episodes`` deterministic
-    episodes (the actor ``eval.actor`` names) on the stream ``examples/evaluate.py`` uses by default
-    (seed + 20000), which no evaluation during training ran: the summary's ``best_policy`` and
-    ``best_evaluated_policy``."""
+    episodes (the actor ``eval.actor`` names) on ``make_eval_env(cfg, seed + 20000, episodes)``
+    (:func:`utils.make_eval_env`: the stream ``examples/evaluate.py`` uses by default, which no
+    evaluation during training ran): the summary's ``best_policy`` and ``best_evaluated_policy``."""
     record, episodes = kept.record(), cfg.eval.best_policy.episodes
     if record["frames"] is None or not episodes:
         return record
     with kept.params(cfg.eval.actor).to_module(actor, preserve_module_state=False):
-        record["eval_return"] = evaluate(make_env(cfg, cfg.seed + 20_000), actor, episodes, cfg.env.max_episode_steps)
+        env = make_eval_env(cfg, cfg.seed + 20_000, episodes)
+        record["eval_return"] = evaluate(env, actor, episodes, cfg.env.max_episode_steps)
     return {**record, "actor": str(cfg.eval.actor), "episodes": episodes, "seed": cfg.seed + 20_000}
 
 

@@ -67,6 +67,7 @@ from utils import (
     make_collector,
     make_discriminator,
     make_env,
+    make_eval_env,
     make_losses,
     make_optimizers,
     make_replay,
@@ -92,7 +93,7 @@ def main(cfg):  # noqa: F821
         return
 
     # --- env, teacher, buffers (everything is validated before training starts)
-    env, eval_envs = make_env(cfg, cfg.seed), make_eval_envs(cfg, make_env)
+    env, eval_envs = make_env(cfg, cfg.seed), make_eval_envs(cfg, make_eval_env)
     rnd, rnd_loss = make_rnd(cfg, env)  # SAIL-RND's curiosity bonus (None for the other methods)
     # DAC's demonstrations store their absorbing transitions with the zero action
     teacher, teacher_return, teacher_source = make_teacher(cfg, env, make_absorbing(cfg))
@@ -253,8 +254,8 @@ def main(cfg):  # noqa: F821
         teacher_source=teacher_source,
         clock=clock,
         alpha_switch_frame=alpha_scheduler.switched_at_frame,
-        best_policy=evaluate_kept_policy(cfg, best_policy, actor, make_env),
-        best_evaluated_policy=evaluate_kept_policy(cfg, best_evaluated, actor, make_env),
+        best_policy=evaluate_kept_policy(cfg, best_policy, actor, make_eval_env),
+        best_evaluated_policy=evaluate_kept_policy(cfg, best_evaluated, actor, make_eval_env),
         evaluated_actor=str(cfg.eval.actor),
         num_promoted=teacher.writer.num_promoted,
         teacher_threshold=teacher.writer.threshold,

@@ -85,8 +85,9 @@ def env_device(cfg: DictConfig) -> str | None:
     return None if torch.device(cfg.device).type == "cpu" else cfg.device
 
 
-def env_factory(cfg: DictConfig, *, render_size=None) -> partial:
-    """The run's env constructor, unseeded: one recipe for this process's envs and the workers'."""
+def env_factory(cfg: DictConfig, *, render_size=None, num_envs: int = 1) -> partial:
+    """The run's env constructor, unseeded: one recipe for this process's envs and the workers'
+    (``num_envs`` > 1: a batched env of that many, ``make_sail_env``'s)."""
     return partial(
         make_sail_env,
         cfg.env.name,
@@ -97,14 +98,23 @@ def env_factory(cfg: DictConfig, *, render_size=None) -> partial:
         device=env_device(cfg),
         normalized_observation_key=normalized_observation_key(cfg),
         env_kwargs=env_kwargs(cfg),
+        num_envs=num_envs,
     )
 
 
-def make_env(cfg: DictConfig, seed: int, *, render_size=None):
-    """The run's env, seeded; ``render_size=(width, height)`` also renders ``"pixels"`` (videos)."""
-    env = env_factory(cfg, render_size=render_size)()
+def make_env(cfg: DictConfig, seed: int, *, render_size=None, num_envs: int = 1):
+    """The run's env, seeded; ``render_size=(width, height)`` also renders ``"pixels"`` (videos);
+    ``num_envs`` > 1: a batched env whose env ``i`` is seeded ``seed + i``."""
+    env = env_factory(cfg, render_size=render_size, num_envs=num_envs)()
     env.set_seed(seed)
     return env
+
+
+def make_eval_env(cfg: DictConfig, seed: int, episodes: int):
+    """The env of evaluations of ``episodes`` episodes from ``seed``: with ``eval.vectorized``, one
+    batched env of ``episodes`` envs that plays them at once (``run_utils.evaluate_episodes``);
+    else one env that plays them one after the other."""
+    return make_env(cfg, seed, num_envs=episodes if cfg.eval.vectorized else 1)
 
 
 def make_collector(cfg: DictConfig, env, policy, *, frames: int):

@@ -500,6 +500,41 @@ def test_evaluations_act_with_the_td3_actor_as_one_module():
     assert one_module_policy(sac_actor) is sac_actor
 
 
+def test_episodes_at_once_are_those_of_envs_seeded_alike():
+    """On a batched env, evaluate_episodes plays one episode per env: env i's is the episode of one env
+    seeded seed + i (its return, r_e, length and steps), whether it ends before max_steps (53, 54),
+    at it (54) or is cut by it (the 55-step one); an env that ended is not read again."""
+    import torch
+    from run_utils import evaluate_episodes
+    from utils import make_agent
+
+    from torchrl_sail import make_sail_env
+
+    torch.manual_seed(0)
+    actor = make_agent(make("env=Walker2d-v4"), make_sail_env("Walker2d-v4"))[0]
+    alone = []
+    for seed in range(4):
+        env = make_sail_env("Walker2d-v4")
+        env.set_seed(seed)
+        alone += evaluate_episodes(env, actor, 1, 54, keep_rollouts=True)
+    batched = make_sail_env("Walker2d-v4", num_envs=4)
+    batched.set_seed(0)
+    at_once = evaluate_episodes(batched, actor, 4, 54, keep_rollouts=True)
+    assert [e["length"] for e in at_once] == [e["length"] for e in alone] == [54, 54, 53, 54]
+    # r_e = floor(0.1 R) where an episode ends (R of 12-14): 1; none for the cut one
+    assert [e["delayed_reward"] for e in at_once] == [e["delayed_reward"] for e in alone] == [0.0, 1.0, 1.0, 1.0]
+    for mine, reference in zip(at_once, alone, strict=True):
+        # the same episode up to the float rounding of a batch of 4 through the actor
+        assert mine["dense_return"] == pytest.approx(reference["dense_return"], rel=1e-5)
+        assert mine["rollout"].batch_size == reference["rollout"].batch_size
+        torch.testing.assert_close(
+            mine["rollout"]["observation"], reference["rollout"]["observation"], rtol=1e-4, atol=1e-4
+        )
+        torch.testing.assert_close(mine["rollout"]["next", "done"], reference["rollout"]["next", "done"])
+    with pytest.raises(ValueError, match=r"batch_size \(4,\) for 3 episodes"):
+        evaluate_episodes(batched, actor, 3, 54)
+
+
 @pytest.mark.parametrize("fixed", [True, False])
 def test_sac_temperature_fixed_as_the_authors_or_learned(fixed):
     import torch

@@ -58,6 +58,20 @@ def test_evaluate_reproduces_the_runs_own_evaluation(trained):
     assert "dense return" in proc.stdout and "delayed reward r_e" in proc.stdout
 
 
+def test_evaluate_plays_at_once_or_one_after_another(trained, tmp_path):
+    """The run's evaluations were batched (eval.vectorized, the default): evaluate.py plays its episodes
+    at once too, unless vectorized=false says one after another on one env; either way episode 0
+    starts where one env seeded `seed` starts (the video's episode), so it is the same episode."""
+    evaluate(f"run_dir={trained}", "episodes=2", "seed=10000", f"out={tmp_path / 'at_once.json'}")
+    evaluate(f"run_dir={trained}", "episodes=2", "seed=10000", "vectorized=false", f"out={tmp_path / 'one.json'}")
+    at_once, one = (json.loads((tmp_path / f"{name}.json").read_text()) for name in ("at_once", "one"))
+    assert at_once["vectorized"] is True and one["vectorized"] is False
+    assert one["dense_return"]["values"][0] == pytest.approx(at_once["dense_return"]["values"][0], rel=1e-5)
+    assert one["length"]["values"][0] == at_once["length"]["values"][0]
+    # episode 1: the second episode of env 10000 against the first of env 10001
+    assert one["dense_return"]["values"][1] != pytest.approx(at_once["dense_return"]["values"][1], rel=1e-3)
+
+
 def test_target_actor_has_the_checkpoints_target_weights(trained):
     import torch
     from example_runner import saved
@@ -259,6 +273,7 @@ def test_evaluate_reads_a_config_saved_before_newer_settings(tmp_path):
     cfg, run = load_run(tmp_path)
     assert run["frames"] == 1000 and cfg.env.name == "Hopper-v4" and cfg.seed == 0
     assert cfg.network.discriminator_spectral_norm is False and cfg.optim.discriminator.max_accuracy is None
+    assert cfg.eval.vectorized is False  # as it ran: one env, one episode after another (SAVED_BEFORE)
     discriminator = make_discriminator(cfg, make_sail_env("Hopper-v4"))  # what load_actor builds
     assert make_discriminator_loss(cfg, discriminator).label_smoothing.item() == 0.0
 

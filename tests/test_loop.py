@@ -421,22 +421,22 @@ def test_eval_envs_one_per_other_actor_the_run_has():
     """eval.other_actor: an env for every actor but eval.actor: online, TD3's target, the average."""
     made = []
 
-    def make_env(cfg, seed):
-        made.append(seed)
+    def make_eval_env(cfg, seed, episodes):
+        made.append((seed, episodes))
         return f"env{len(made)}"
 
     def cfg(learner, actor, other_actor, average_frames):
         return SimpleNamespace(
             seed=3,
             algo=SimpleNamespace(learner=learner),
-            eval=SimpleNamespace(actor=actor, other_actor=other_actor, average_frames=average_frames),
+            eval=SimpleNamespace(actor=actor, other_actor=other_actor, average_frames=average_frames, episodes=7),
         )
 
-    assert loop.make_eval_envs(cfg("td3", "online", False, 5000), make_env)["others"] == {}
-    assert list(loop.make_eval_envs(cfg("td3", "target", True, 0), make_env)["others"]) == ["online"]
-    assert list(loop.make_eval_envs(cfg("td3", "average", True, 5000), make_env)["others"]) == ["online", "target"]
-    assert list(loop.make_eval_envs(cfg("sac", "online", True, 5000), make_env)["others"]) == ["average"]
-    assert set(made) == {10_003}  # every one on the evaluation's seed
+    assert loop.make_eval_envs(cfg("td3", "online", False, 5000), make_eval_env)["others"] == {}
+    assert list(loop.make_eval_envs(cfg("td3", "target", True, 0), make_eval_env)["others"]) == ["online"]
+    assert list(loop.make_eval_envs(cfg("td3", "average", True, 5000), make_eval_env)["others"]) == ["online", "target"]
+    assert list(loop.make_eval_envs(cfg("sac", "online", True, 5000), make_eval_env)["others"]) == ["average"]
+    assert set(made) == {(10_003, 7)}  # every one on the evaluation's seed, for its episodes
 
 
 def test_evaluation_metrics_of_an_evaluations_episodes():

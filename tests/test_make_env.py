@@ -1,4 +1,4 @@
-"""``make_sail_env``'s gymnasium arguments: ``env_kwargs`` and the camera videos render from."""
+"""``make_sail_env``'s gymnasium arguments: ``env_kwargs``, the camera videos render from, and a batched env."""
 
 from __future__ import annotations
 
@@ -33,3 +33,24 @@ def test_videos_follow_the_body(name):
     assert track >= 0 and view.camera_id == track
     assert view.model.cam_mode[track] == mujoco.mjtCamLight.mjCAMLIGHT_TRACKCOM
     assert renderer(make_sail_env(name, render_size=(64, 48), render_camera=None)).camera_id == -1
+
+
+def test_num_envs_batches_the_stack_env_i_seeded_seed_plus_i():
+    """num_envs=3: one batched env whose env i starts where one env seeded 7 + i does, the time
+    feature and the delayed reward per env; with render_size, or below 1, refused."""
+    import torch
+
+    batched = make_sail_env("Hopper-v4", num_envs=3)
+    batched.set_seed(7)
+    assert batched.batch_size == torch.Size([3]) and batched.action_spec.shape == torch.Size([3, 3])
+    rollout = batched.rollout(3)
+    assert rollout["observation"][:, :, -1].tolist() == [[1.0, 0.9990000128746033, 0.9980000257492065]] * 3
+    for i in range(3):
+        alone = make_sail_env("Hopper-v4")
+        alone.set_seed(7 + i)
+        assert torch.equal(alone.reset()["observation"], rollout["observation"][i, 0])
+    assert len({tuple(rollout["observation"][i, 0].tolist()) for i in range(3)}) == 3  # three start states
+    with pytest.raises(ValueError, match=r"num_envs=2: must be 1 or more, and 1 with render_size=\(64, 64\)"):
+        make_sail_env("Hopper-v4", num_envs=2, render_size=(64, 64))
+    with pytest.raises(ValueError, match="num_envs=0"):
+        make_sail_env("Hopper-v4", num_envs=0)

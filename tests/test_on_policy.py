@@ -74,25 +74,29 @@ def test_policy_reads_normalised_observations_and_d_the_raw_ones():
     assert make_ppo_models(plain_cfg, make_env(plain_cfg, 0))[0].in_keys == ["observation"]
 
 
-def test_evaluation_runs_the_training_statistics_frozen():
+@pytest.mark.parametrize("episodes", [1, 3])
+def test_evaluation_runs_the_training_statistics_frozen(episodes):
+    """On one env and on a batched env of 3 (eval.vectorized), evaluations normalise with the
+    training statistics, frozen."""
     cfg = make_cfg("algo=gail")
-    train_env, eval_env = make_env(cfg, 0), make_env(cfg, 10_000)
+    train_env, eval_env = make_env(cfg, 0), make_env(cfg, 10_000, num_envs=episodes)
     rollout(train_env, 40)
     trained = stats(observation_normalizer(train_env))
     copy_observation_norm(train_env, eval_env)
     eval_norm = observation_normalizer(eval_env)
     assert eval_norm.frozen and not observation_normalizer(train_env).frozen
     assert_same_stats(stats(eval_norm), trained)
-    actor, _ = make_ppo_models(cfg, eval_env)
-    episode = evaluate_episodes(eval_env, actor, 1, 50, keep_rollouts=True)[0]["rollout"]
+    actor, _ = make_ppo_models(cfg, train_env)
+    played = evaluate_episodes(eval_env, actor, episodes, 50, keep_rollouts=True)
     # An evaluation changes neither the training statistics nor its frozen copy ...
     assert_same_stats(stats(observation_normalizer(train_env)), trained)
     assert_same_stats(stats(eval_norm), trained)
     # ... and normalises with the training statistics
     train_norm = observation_normalizer(train_env)
     loc, scale = train_norm.loc["observation"], train_norm.scale["observation"]
-    expected = ((episode["next", "observation"][:, :-1].double() - loc) / scale).clamp(-10, 10).float()
-    torch.testing.assert_close(episode["next", "observation_norm"][:, :-1], expected, rtol=0, atol=1e-4)
+    for episode in (e["rollout"] for e in played):
+        expected = ((episode["next", "observation"][:, :-1].double() - loc) / scale).clamp(-10, 10).float()
+        torch.testing.assert_close(episode["next", "observation_norm"][:, :-1], expected, rtol=0, atol=1e-4)
     # the copy is the statistics, not a view of them: training goes on without moving the frozen copy
     rollout(train_env, 5, seed=1)
     assert_same_stats(stats(eval_norm), trained)

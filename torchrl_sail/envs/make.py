@@ -8,6 +8,7 @@ paper's teacher files carry) and the same trajectory-wise reward.
 from __future__ import annotations
 
 import difflib
+from functools import partial
 
 import gymnasium as gym
 import numpy as np
@@ -17,6 +18,7 @@ from torchrl.envs import (
     Compose,
     DoubleToFloat,
     GymEnv,
+    GymWrapper,
     InitTracker,
     StepCounter,
     TransformedEnv,
@@ -56,6 +58,7 @@ def make_sail_env(
     env_kwargs: dict | None = None,
     render_camera: str | None = "track",
     device: str | None = None,
+    num_envs: int = 1,
 ) -> TransformedEnv:
     """Builds ``GymEnv(env_name)`` with the SAIL transforms.
 
@@ -109,10 +112,19 @@ def make_sail_env(
             per step, as TorchRL then moves neither the step's result nor, in a ``Collector``,
             the carried tensordict (about 0.3 ms of a 1.8 ms Hopper frame,
             ``benchmarks/bench_collect.py``). Defaults to ``None``.
+        num_envs (int, optional): more than 1 makes a batched env (``batch_size=[num_envs]``) over
+            gymnasium's ``SyncVectorEnv`` of that many envs, with the same transforms applied to the
+            batch: TorchRL's per-step work is shared by the envs, which makes deterministic
+            evaluation episodes several times cheaper per env step (``benchmarks/bench_eval.py``).
+            ``set_seed(s)`` seeds env ``i`` with ``s + i``, so env ``i``'s episodes start where those of
+            a single env seeded ``s + i`` do. The vector env does not reset an env by itself
+            (``AutoresetMode.DISABLED``): TorchRL resets the done ones (``step_and_maybe_reset``), as
+            it does for its own batched envs. Not with ``render_size``. Defaults to ``1``.
 
     Raises:
-        ValueError: for an unknown env name (with the closest registered names), or
-            ``env_kwargs`` that ``gymnasium.make`` rejects (naming them).
+        ValueError: for an unknown env name (with the closest registered names),
+            ``env_kwargs`` that ``gymnasium.make`` rejects (naming them), or ``num_envs`` below 1
+            or above 1 with ``render_size``.
 
     Examples:
         >>> from torchrl_sail.envs import make_sail_env, observation_normalizer
@@ -126,8 +138,14 @@ def make_sail_env(
         (torch.Size([3, 12]), [1.0, 0.9990000128746033, 0.9980000257492065])
         >>> observation_normalizer(env).frozen  # updated by every reset and step
         False
+        >>> batch = make_sail_env("Hopper-v4", num_envs=3)
+        >>> _ = batch.set_seed(0)  # env i from seed 0 + i
+        >>> batch.rollout(2)["observation"].shape
+        torch.Size([3, 2, 12])
     """
     _check_env_name(env_name)
+    if num_envs < 1 or (num_envs > 1 and render_size is not None):
+        raise ValueError(f"num_envs={num_envs}: must be 1 or more, and 1 with render_size={render_size}")
     transforms = [DoubleToFloat(), StepCounter(max_steps=max_episode_steps), InitTracker()]
     observation_keys = ["observation"]
     if normalized_observation_key is not None:
@@ -151,7 +169,13 @@ def make_sail_env(
         # MuJoCo returns a vertically flipped view (negative strides): copy it into a plain array
         transforms.append(PixelRenderTransform(out_keys=["pixels"], preproc=np.ascontiguousarray))
     try:
-        base = GymEnv(env_name, device=device, **kwargs)
+        if num_envs == 1:
+            base = GymEnv(env_name, device=device, **kwargs)
+        else:
+            vector = gym.vector.SyncVectorEnv(
+                [partial(gym.make, env_name, **kwargs)] * num_envs, autoreset_mode=gym.vector.AutoresetMode.DISABLED
+            )
+            base = GymWrapper(vector, device=device)
     except TypeError as err:  # gymnasium.make passes unknown kwargs on to the env's __init__
         raise ValueError(f"gymnasium.make({env_name!r}) rejects env_kwargs={dict(env_kwargs or {})}: {err}") from err
     return TransformedEnv(base, Compose(*transforms))
