@@ -1828,6 +1828,34 @@ BLOCKS = {
     ),
 }
 
+#: The studies whose README tables ``study_tables.py`` makes from their runs (each table a block of the
+#: name its ``tables.json`` gives it), relative to the repository
+STUDIES = (Path("benchmarks/results/preact_h200"),)
+
+
+def study_spec(study: Path) -> dict:
+    """``study``'s ``tables.json``: its tables by name (``study_tables.py`` says what each holds)."""
+    path = Path(study) / "tables.json"
+    try:
+        return json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as err:
+        raise ValueError(f"{path}: {err}") from err
+
+
+def study_tables(study: Path) -> list[str]:
+    """The table names of ``study``'s ``tables.json``: each is a block of its README."""
+    return list(study_spec(REPO / study))
+
+
+def study_block(name: str) -> Block:
+    return Block(lambda source, target: sibling("study_tables").render(source.roots[0], name))
+
+
+STUDY_BLOCKS = {name: study_block(name) for study in STUDIES for name in study_tables(study)}
+if set(STUDY_BLOCKS) & set(BLOCKS):
+    raise ValueError(f"study tables named as other blocks: {sorted(set(STUDY_BLOCKS) & set(BLOCKS))}")
+BLOCKS.update(STUDY_BLOCKS)
+
 #: The generated blocks of the repository's Markdown files: file -> {block: the folder it is made from}
 #: (paths relative to the repository). ``--update-docs`` writes them, ``--check`` compares them.
 DOCUMENTS = {
@@ -1844,6 +1872,7 @@ DOCUMENTS = {
     "benchmarks/results/hopper_falls/README.md": {"hopper-falls": Path("benchmarks/results/hopper_falls")},
     "benchmarks/results/random_policy/README.md": {"random-policy": Path("benchmarks/results/random_policy")},
     "docs/training.md": {"shipped-teachers": Path("examples/teachers")},
+    **{str(study / "README.md"): {name: study for name in study_tables(study)} for study in STUDIES},
     "docs/performance.md": {
         **{
             name: THROUGHPUT

@@ -1,0 +1,175 @@
+"""The tables of a study's README, made from the run folders it lists.
+
+    python benchmarks/study_tables.py benchmarks/results/preact_h200 [--table preact-seeds]
+
+A study folder under ``benchmarks/results/`` lists its tables in ``tables.json``: each is a kind and
+the runs it shows, by label and folder (relative to the study folder); every figure comes from the
+runs' own files (``summary.json``, ``scalars.csv``, ``config.yaml``), none is typed.
+``python benchmarks/aggregate.py --update-docs`` writes each table into the README's block of the
+same name, and ``--check`` (``tests/test_generated_docs.py``) fails where one differs. The kinds:
+
+- ``seeds``: ``{"rows": [[case, setting, run], ...]}``, one row per run: its case (with the teacher's
+  return), setting, seed, last-5 (the mean of its last five evaluations), last-5 over the teacher's
+  return, final and best evaluation, the frame it first evaluated above the teacher, and the
+  trajectories it promoted (with the frame of the first, where the run logged it). A case or setting
+  that repeats the row above is left blank.
+- ``means``: ``{"of": <a seeds table>}``: per case and setting of that table, the last-5's mean and
+  sample std over its seeds.
+- ``windows``: ``{"window": frames, "rows": [[label, run, [part, ...]], ...]}``, per window of frames
+  (:func:`windows.windows`), the part ``d`` (D's accuracy on teacher / agent rows) and the part
+  ``actor`` (the actor's saturation / mean pre-tanh ``|x|``), one line each; ``-`` where the run
+  logged none in a window.
+- ``evaluations``: ``{"first": frames, "last": frames, "header": [first column, run column, ...],
+  "rows": [[label, run, ...], ...]}``: each run's evaluations from ``first`` to ``last`` frames,
+  rounded to integers.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import statistics
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from aggregate import Run, load_run, study_spec  # noqa: E402
+from windows import windows  # noqa: E402
+
+from torchrl_sail.harness import read_scalar  # noqa: E402
+
+
+def thousands(frames: int | None) -> str:
+    """Frames as the tables write them: ``40k``, ``28.5k``; ``-`` for none."""
+    if frames is None:
+        return "-"
+    return f"{frames / 1000:g}k"
+
+
+def run_at(study: Path, folder: str) -> Run:
+    """The run ``folder`` (relative to ``study``) names, read; refused if it is not a finished run."""
+    run = load_run(Path(study) / folder)
+    if run.summary is None or not run.curve:
+        raise ValueError(f"{Path(study) / folder}: no summary.json or no evaluations to show")
+    return run
+
+
+def promoted(run: Run) -> str:
+    """The trajectories ``run`` promoted, with the frame of the first where it logged them."""
+    count = int(run.summary["num_promoted"])
+    first = next((frames for frames, value in read_scalar(run.folder, "teacher/num_promoted") if value > 0), None)
+    return f"{count} ({thousands(first)})" if count and first is not None else str(count)
+
+
+def seeds_table(study: Path, table: dict) -> str:
+    lines = [
+        "| case | setting | seed | last-5 | / T | final | best | passed at | promoted (first at) |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    before = (None, None)
+    for case, setting, folder in table["rows"]:
+        run = run_at(study, folder)
+        teacher = run.teacher_return
+        shown_case = "" if case == before[0] else f"{case} ({teacher:.1f})"
+        shown_setting = "" if (case, setting) == before else setting
+        before = (case, setting)
+        last5 = run.headline_return
+        cells = [
+            shown_case,
+            shown_setting,
+            str(run.seed),
+            f"{last5:.1f}",
+            f"{last5 / teacher:.2f}",
+            f"{run.final_return:.1f}",
+            f"{run.best_return:.1f}",
+            thousands(run.passed_teacher_at()),
+            promoted(run),
+        ]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def means_table(study: Path, table: dict, tables: dict) -> str:
+    groups: dict[tuple[str, str], list[float]] = {}
+    for case, setting, folder in tables[table["of"]]["rows"]:
+        groups.setdefault((case, setting), []).append(run_at(study, folder).headline_return)
+    lines = ["| case | setting | seeds | last-5, mean ± std |", "|---|---|---|---|"]
+    for (case, setting), values in groups.items():
+        spread = f" ± {statistics.stdev(values):.1f}" if len(values) > 1 else ""
+        lines.append(f"| {case} | {setting} | {len(values)} | {statistics.fmean(values):.1f}{spread} |")
+    return "\n".join(lines)
+
+
+PARTS = {
+    "d": ("D", ("D acc teacher", "D acc agent"), ("{:.3f}", "{:.3f}")),
+    "actor": ("actor", ("actor saturated", "actor |pre-tanh|"), ("{:.2f}", "{:.1f}")),
+}
+
+
+def windows_table(study: Path, table: dict) -> str:
+    size = int(table["window"])
+    rows = [(label, windows(Path(study) / folder, size), parts) for label, folder, parts in table["rows"]]
+    count = max(len(found) for _, found, _ in rows)
+    header = [f"{k * size / 1000:g}-{(k + 1) * size / 1000:g}k" for k in range(count)]
+    lines = ["| run | " + " | ".join(header) + " |", "|---|" + "---|" * count]
+    for label, found, parts in rows:
+        for index, part in enumerate(parts):
+            name, columns, formats = PARTS[part]
+            cells = [
+                " / ".join(
+                    "-" if math.isnan(window[column]) else form.format(window[column])
+                    for column, form in zip(columns, formats, strict=True)
+                )
+                for window in found
+            ]
+            title = f"{label}: {name}" if index == 0 else name
+            lines.append(f"| {title} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def evaluations_table(study: Path, table: dict) -> str:
+    first, last = int(table["first"]), int(table["last"])
+    lines = ["| " + " | ".join(table["header"]) + " |", "|---|" + "---|" * (len(table["header"]) - 1)]
+    for label, *folders in table["rows"]:
+        cells = []
+        for folder in folders:
+            curve = dict(read_scalar(Path(study) / folder, "eval/return"))
+            cells.append(", ".join(f"{curve[frames]:.0f}" for frames in sorted(curve) if first <= frames <= last))
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def render(study: Path, name: str) -> str:
+    """The Markdown of ``study``'s table ``name``.
+
+    Raises:
+        ValueError: an unknown table or kind (naming them), or a run folder without a summary or evaluations.
+    """
+    tables = study_spec(study)
+    if name not in tables:
+        raise ValueError(f"{Path(study) / 'tables.json'}: no table {name!r} (it has {', '.join(tables)})")
+    table, kind = tables[name], tables[name].get("kind")
+    if kind == "seeds":
+        return seeds_table(study, table)
+    if kind == "means":
+        return means_table(study, table, tables)
+    if kind == "windows":
+        return windows_table(study, table)
+    if kind == "evaluations":
+        return evaluations_table(study, table)
+    raise ValueError(
+        f"{Path(study) / 'tables.json'}: table {name!r} has kind {kind!r}, not seeds, means, windows or evaluations"
+    )
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("study", type=Path, help="a study folder with a tables.json")
+    parser.add_argument("--table", default=None, help="one table (default: all of them)")
+    args = parser.parse_args(argv)
+    for name in [args.table] if args.table else list(study_spec(args.study)):
+        print(f"{name}:\n\n{render(args.study, name)}\n")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,135 @@
+"""``benchmarks/study_tables.py``: a study README's tables made from made run folders, each figure
+against a hand-computed value (no training)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import yaml
+from benchmark_scripts import load_benchmark
+
+study_tables = load_benchmark("study_tables")
+
+
+def write_run(folder: Path, seed: int, scalars: dict[str, list[tuple[int, float]]], *, teacher=50.0, promoted=0):
+    """A results copy of a run: config.yaml, scalars.csv (tag,frames,value) and summary.json."""
+    folder.mkdir(parents=True)
+    (folder / "config.yaml").write_text(
+        yaml.safe_dump({"env": {"name": "Swimmer-v4"}, "algo": {"name": "sail"}, "seed": seed, "teacher": {}})
+    )
+    lines = ["tag,frames,value"] + [f"{tag},{f},{v}" for tag, rows in scalars.items() for f, v in rows]
+    (folder / "scalars.csv").write_text("\n".join(lines) + "\n")
+    evals = scalars["eval/return"]
+    passed = next((f for f, v in evals if v > teacher), None)
+    summary = {
+        "teacher_return": teacher,
+        "frames": evals[-1][0],
+        "final_eval_return": evals[-1][1],
+        "passed_teacher_at_frame": passed,
+        "num_promoted": promoted,
+    }
+    (folder / "summary.json").write_text(json.dumps(summary))
+
+
+@pytest.fixture
+def study(tmp_path):
+    """Two settings of one case: the defaults (seeds 1 and 2) and a penalty (seed 1), six evaluations each."""
+    ten = [10_000 * k for k in range(1, 7)]
+    write_run(
+        tmp_path / "d1",
+        1,
+        {
+            "eval/return": list(zip(ten, [10.0, 20.0, 60.0, 40.0, 80.0, 70.0], strict=True)),
+            "teacher/num_promoted": [(27_000, 0.0), (28_500, 2.0), (40_000, 5.0)],
+            "d/accuracy_teacher": [(5_000, 0.5), (15_000, 0.7), (25_000, 0.9)],
+            "d/accuracy_agent": [(5_000, 0.6), (15_000, 0.8), (25_000, 1.0)],
+        },
+        promoted=5,
+    )
+    write_run(tmp_path / "d2", 2, {"eval/return": list(zip(ten, [1.0, 2.0, 3.0, 4.0, 5.0, 6.0], strict=True))})
+    write_run(
+        tmp_path / "p1",
+        1,
+        {
+            "eval/return": list(zip(ten, [55.0, 10.0, 10.0, 10.0, 10.0, 10.0], strict=True)),
+            "actor/saturation": [(5_000, 0.25), (25_000, 0.5)],
+            "actor/preactivation": [(5_000, 2.0), (25_000, 3.06)],
+        },
+        promoted=3,  # logged no teacher/num_promoted: the count alone
+    )
+    tables = {
+        "t-seeds": {
+            "kind": "seeds",
+            "rows": [["Swimmer", "defaults", "d1"], ["Swimmer", "defaults", "d2"], ["Swimmer", "`coef`", "p1"]],
+        },
+        "t-means": {"kind": "means", "of": "t-seeds"},
+        "t-windows": {
+            "kind": "windows",
+            "window": 20_000,
+            "rows": [["d, s1", "d1", ["d"]], ["p, s1", "p1", ["actor"]]],
+        },
+        "t-evals": {
+            "kind": "evaluations",
+            "first": 20_000,
+            "last": 40_000,
+            "header": ["seed", "a", "b"],
+            "rows": [["1", "d1", "p1"]],
+        },
+    }
+    (tmp_path / "tables.json").write_text(json.dumps(tables))
+    return tmp_path
+
+
+def rows(text: str) -> list[str]:
+    return text.splitlines()[2:]
+
+
+def test_seeds_table(study):
+    # d1: last-5 = (20+60+40+80+70)/5 = 54.0, / 50 = 1.08, final 70, best 80, passed at 30k (60 > 50),
+    # 5 promoted, the first at 28.5k; d2 never passed; p1 passed at 10k (55), 3 promoted, no log of when
+    assert rows(study_tables.render(study, "t-seeds")) == [
+        "| Swimmer (50.0) | defaults | 1 | 54.0 | 1.08 | 70.0 | 80.0 | 30k | 5 (28.5k) |",
+        "|  |  | 2 | 4.0 | 0.08 | 6.0 | 6.0 | - | 0 |",
+        "|  | `coef` | 1 | 10.0 | 0.20 | 10.0 | 55.0 | 10k | 3 |",
+    ]
+
+
+def test_means_table(study):
+    # defaults: mean of 54 and 4 = 29.0, sample std = 50 / sqrt(2) = 35.36; one seed: no std
+    assert rows(study_tables.render(study, "t-means")) == [
+        "| Swimmer | defaults | 2 | 29.0 ± 35.4 |",
+        "| Swimmer | `coef` | 1 | 10.0 |",
+    ]
+
+
+def test_windows_table(study):
+    text = study_tables.render(study, "t-windows")
+    assert text.splitlines()[0] == "| run | 0-20k | 20-40k | 40-60k |"  # up to the last frame logged, 60k
+    # d1's D: (0.5 + 0.7) / 2 = 0.6 and (0.6 + 0.8) / 2 = 0.7 in 0-20k, 0.9 / 1.0 in 20-40k, none after
+    # p1's actor: 0.25 / 2.0, then 0.50 / 3.1
+    assert rows(text) == [
+        "| d, s1: D | 0.600 / 0.700 | 0.900 / 1.000 | - / - |",
+        "| p, s1: actor | 0.25 / 2.0 | 0.50 / 3.1 | - / - |",
+    ]
+
+
+def test_evaluations_table(study):
+    assert rows(study_tables.render(study, "t-evals")) == ["| 1 | 20, 60, 40 | 10, 10, 10 |"]
+
+
+def test_bad_tables_are_named(study):
+    with pytest.raises(ValueError, match=r"tables.json: no table 'nope' \(it has t-seeds, t-means"):
+        study_tables.render(study, "nope")
+    spec = json.loads((study / "tables.json").read_text())
+    spec["t-odd"] = {"kind": "odd"}
+    (study / "tables.json").write_text(json.dumps(spec))
+    with pytest.raises(ValueError, match="table 't-odd' has kind 'odd', not seeds, means, windows or evaluations"):
+        study_tables.render(study, "t-odd")
+    (study / "d2" / "summary.json").unlink()
+    with pytest.raises(ValueError, match=r"d2: no summary.json or no evaluations to show"):
+        study_tables.render(study, "t-seeds")
+    (study / "tables.json").write_text("{")
+    with pytest.raises(ValueError, match="tables.json: Expecting property name"):
+        study_tables.render(study, "t-seeds")
