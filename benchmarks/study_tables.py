@@ -19,6 +19,12 @@ same name, and ``--check`` (``tests/test_generated_docs.py``) fails where one di
   (:func:`windows.windows`), the part ``d`` (D's accuracy on teacher / agent rows) and the part
   ``actor`` (the actor's saturation / mean pre-tanh ``|x|``), one line each; ``-`` where the run
   logged none in a window.
+- ``runs``: ``{"columns": [...], "rows": [[section], [label, run], ...]}``: one row per run, its
+  label then the columns named, of ``evaluations`` (every evaluation, rounded), ``last-5``,
+  ``passed at`` and ``promoted (first at)``; a row of one item starts a section of runs with one
+  teacher, written with that teacher's return (their summaries'). A run cut short, without a
+  ``summary.json``, is labelled with its last evaluation's frame, passes the teacher at its first
+  evaluation above the section's teacher return (written beside it) and promoted what it logged.
 - ``evaluations``: ``{"first": frames, "last": frames, "header": [first column, run column, ...],
   "rows": [[label, run, ...], ...]}``: each run's evaluations from ``first`` to ``last`` frames,
   rounded to integers.
@@ -54,10 +60,19 @@ def run_at(study: Path, folder: str) -> Run:
     return run
 
 
+def promotions(run: Run) -> tuple[int, int | None]:
+    """The trajectories ``run`` promoted (its summary's count, else the most it logged) and the frame
+    it logged the first at (None where it logged none)."""
+    logged = read_scalar(run.folder, "teacher/num_promoted")
+    first = next((frames for frames, value in logged if value > 0), None)
+    if run.summary is not None:
+        return int(run.summary["num_promoted"]), first
+    return int(max((value for _, value in logged), default=0)), first
+
+
 def promoted(run: Run) -> str:
     """The trajectories ``run`` promoted, with the frame of the first where it logged them."""
-    count = int(run.summary["num_promoted"])
-    first = next((frames for frames, value in read_scalar(run.folder, "teacher/num_promoted") if value > 0), None)
+    count, first = promotions(run)
     return f"{count} ({thousands(first)})" if count and first is not None else str(count)
 
 
@@ -127,6 +142,51 @@ def windows_table(study: Path, table: dict) -> str:
     return "\n".join(lines)
 
 
+def cut_short(study: Path, folder: str) -> Run:
+    """A run stopped before its end (no ``summary.json``), read with the evaluations it logged."""
+    run = load_run(Path(study) / folder)
+    if not run.curve:
+        raise ValueError(f"{Path(study) / folder}: no evaluations to show")
+    return run
+
+
+def runs_row(run: Run, label: str, columns: list[str], teacher: float) -> str:
+    if run.summary is not None:
+        passed = thousands(run.passed_teacher_at())
+    else:
+        label += f" (to {thousands(run.curve[-1][0])})"
+        first = next(((frames, value) for frames, value in run.curve if value > teacher), None)
+        passed = "-" if first is None else f"{thousands(first[0])} ({first[1]:.1f})"
+    values = {
+        "evaluations": ", ".join(f"{value:.0f}" for value in run.eval_returns),
+        "last-5": f"{run.headline_return:.1f}",
+        "passed at": passed,
+        "promoted (first at)": promoted(run),
+    }
+    return f"| {label} | " + " | ".join(values[column] for column in columns) + " |"
+
+
+def runs_table(study: Path, table: dict) -> str:
+    columns = list(table["columns"])
+    unknown = sorted(set(columns) - {"evaluations", "last-5", "passed at", "promoted (first at)"})
+    if unknown:
+        raise ValueError(f"{Path(study) / 'tables.json'}: unknown columns {unknown}")
+    lines = ["| run | " + " | ".join(columns) + " |", "|---|" + "---|" * len(columns)]
+    sections: list[tuple[str, list[tuple[str, Run]]]] = []
+    for row in table["rows"]:
+        if len(row) == 1:
+            sections.append((row[0], []))
+        else:
+            label, folder = row
+            sections[-1][1].append((label, cut_short(study, folder)))
+    for title, runs in sections:
+        returns = [run.teacher_return for _, run in runs if run.teacher_return is not None]
+        teacher = statistics.median(returns)
+        lines.append(f"| **{title} ({teacher:.1f})** |" + " |" * len(columns))
+        lines += [runs_row(run, label, columns, teacher) for label, run in runs]
+    return "\n".join(lines)
+
+
 def evaluations_table(study: Path, table: dict) -> str:
     first, last = int(table["first"]), int(table["last"])
     lines = ["| " + " | ".join(table["header"]) + " |", "|---|" + "---|" * (len(table["header"]) - 1)]
@@ -157,9 +217,10 @@ def render(study: Path, name: str) -> str:
         return windows_table(study, table)
     if kind == "evaluations":
         return evaluations_table(study, table)
-    raise ValueError(
-        f"{Path(study) / 'tables.json'}: table {name!r} has kind {kind!r}, not seeds, means, windows or evaluations"
-    )
+    if kind == "runs":
+        return runs_table(study, table)
+    kinds = "seeds, means, windows, runs or evaluations"
+    raise ValueError(f"{Path(study) / 'tables.json'}: table {name!r} has kind {kind!r}, not {kinds}")
 
 
 def main(argv: list[str] | None = None) -> None:

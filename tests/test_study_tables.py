@@ -125,7 +125,7 @@ def test_bad_tables_are_named(study):
     spec = json.loads((study / "tables.json").read_text())
     spec["t-odd"] = {"kind": "odd"}
     (study / "tables.json").write_text(json.dumps(spec))
-    with pytest.raises(ValueError, match="table 't-odd' has kind 'odd', not seeds, means, windows or evaluations"):
+    with pytest.raises(ValueError, match="'t-odd' has kind 'odd', not seeds, means, windows, runs or evaluations"):
         study_tables.render(study, "t-odd")
     (study / "d2" / "summary.json").unlink()
     with pytest.raises(ValueError, match=r"d2: no summary.json or no evaluations to show"):
@@ -133,3 +133,30 @@ def test_bad_tables_are_named(study):
     (study / "tables.json").write_text("{")
     with pytest.raises(ValueError, match="tables.json: Expecting property name"):
         study_tables.render(study, "t-seeds")
+
+
+def test_runs_table_with_a_run_cut_short(study):
+    """A section's teacher return is its finished runs'; a run without summary.json is labelled with
+    its last evaluation's frame, passes at its first evaluation above that return (value beside it) and
+    shows the promotions it logged."""
+    write_run(study / "cut", 3, {"eval/return": [(10_000, 40.0), (20_000, 51.5), (30_000, 52.0)]})
+    (study / "cut" / "summary.json").unlink()
+    lines = (study / "cut" / "scalars.csv").read_text() + "teacher/num_promoted,25000,0\nteacher/num_promoted,29000,4\n"
+    (study / "cut" / "scalars.csv").write_text(lines)
+    spec = json.loads((study / "tables.json").read_text())
+    spec["t-runs"] = {
+        "kind": "runs",
+        "columns": ["evaluations", "last-5", "promoted (first at)", "passed at"],
+        "rows": [["Swimmer, weak"], ["defaults s1", "d1"], ["cut s3", "cut"]],
+    }
+    (study / "tables.json").write_text(json.dumps(spec))
+    assert rows(study_tables.render(study, "t-runs")) == [
+        "| **Swimmer, weak (50.0)** | | | | |",
+        "| defaults s1 | 10, 20, 60, 40, 80, 70 | 54.0 | 5 (28.5k) | 30k |",
+        # last-5 of three evaluations: their mean, 47.8
+        "| cut s3 (to 30k) | 40, 52, 52 | 47.8 | 4 (29k) | 20k (51.5) |",
+    ]
+    spec["t-runs"]["columns"] = ["final"]
+    (study / "tables.json").write_text(json.dumps(spec))
+    with pytest.raises(ValueError, match=r"unknown columns \['final'\]"):
+        study_tables.render(study, "t-runs")
