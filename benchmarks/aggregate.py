@@ -1830,7 +1830,7 @@ BLOCKS = {
 
 #: The studies whose README tables ``study_tables.py`` makes from their runs (each table a block of the
 #: name its ``tables.json`` gives it), relative to the repository
-STUDIES = (Path("benchmarks/results/preact_h200"), Path("benchmarks/results/reward_shift_h200"))
+STUDIES = tuple(Path("benchmarks/results") / name for name in ("preact_h200", "reward_shift_h200", "weak_swimmer_h200"))
 
 
 def study_spec(study: Path) -> dict:

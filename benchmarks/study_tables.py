@@ -20,9 +20,11 @@ same name, and ``--check`` (``tests/test_generated_docs.py``) fails where one di
   ``actor`` (the actor's saturation / mean pre-tanh ``|x|``), one line each; ``-`` where the run
   logged none in a window.
 - ``runs``: ``{"columns": [...], "rows": [[section], [label, run], ...]}``: one row per run, its
-  label then the columns named, of ``evaluations`` (every evaluation, rounded), ``last-5``,
-  ``passed at`` and ``promoted (first at)``; a row of one item starts a section of runs with one
-  teacher, written with that teacher's return (their summaries'). A run cut short, without a
+  label then the columns named (:data:`RUN_COLUMNS`: every evaluation, last-5 and over the
+  teacher, final, best, passed at, the promotions (with the first's frame), the threshold C and the
+  frame alpha switched at, D's last accuracies and the share of D steps skipped, from the run's
+  summary; ``-`` where it has none); a row of one item starts a section of runs with one teacher, written with that
+  teacher's return (their summaries'). A run cut short, without a
   ``summary.json``, is labelled with its last evaluation's frame, passes the teacher at its first
   evaluation above the section's teacher return (written beside it) and promoted what it logged.
 - ``evaluations``: ``{"first": frames, "last": frames, "header": [first column, run column, ...],
@@ -60,6 +62,17 @@ def run_at(study: Path, folder: str) -> Run:
     return run
 
 
+def final_and_best(run: Run) -> tuple[float, float]:
+    """``run``'s last and best evaluation: its summary's where it has them (exact where a results copy's
+    ``scalars.csv`` holds the progress bar's rounded evaluations), else its curve's."""
+    summary = run.summary or {}
+    final, best = summary.get("final_eval_return"), summary.get("best_eval_return")
+    return (
+        run.final_return if final is None else float(final),
+        run.best_return if best is None else float(best),
+    )
+
+
 def promotions(run: Run) -> tuple[int, int | None]:
     """The trajectories ``run`` promoted (its summary's count, else the most it logged) and the frame
     it logged the first at (None where it logged none)."""
@@ -88,15 +101,15 @@ def seeds_table(study: Path, table: dict) -> str:
         shown_case = "" if case == before[0] else f"{case} ({teacher:.1f})"
         shown_setting = "" if (case, setting) == before else setting
         before = (case, setting)
-        last5 = run.headline_return
+        last5, (final, best) = run.headline_return, final_and_best(run)
         cells = [
             shown_case,
             shown_setting,
             str(run.seed),
             f"{last5:.1f}",
             f"{last5 / teacher:.2f}",
-            f"{run.final_return:.1f}",
-            f"{run.best_return:.1f}",
+            f"{final:.1f}",
+            f"{best:.1f}",
             thousands(run.passed_teacher_at()),
             promoted(run),
         ]
@@ -150,6 +163,23 @@ def cut_short(study: Path, folder: str) -> Run:
     return run
 
 
+#: The columns of a ``runs`` table
+RUN_COLUMNS = (
+    "evaluations",
+    "last-5",
+    "/ T",
+    "final",
+    "best",
+    "passed at",
+    "promoted (first at)",
+    "promoted",
+    "C at the end",
+    "alpha switched at",
+    "D accuracy teacher / agent (last)",
+    "D steps skipped",
+)
+
+
 def runs_row(run: Run, label: str, columns: list[str], teacher: float) -> str:
     if run.summary is not None:
         passed = thousands(run.passed_teacher_at())
@@ -157,18 +187,32 @@ def runs_row(run: Run, label: str, columns: list[str], teacher: float) -> str:
         label += f" (to {thousands(run.curve[-1][0])})"
         first = next(((frames, value) for frames, value in run.curve if value > teacher), None)
         passed = "-" if first is None else f"{thousands(first[0])} ({first[1]:.1f})"
+    summary = run.summary or {}
+    last = (summary.get("discriminator") or {}).get("last") or {}
+    skipped = (summary.get("discriminator") or {}).get("skipped_fraction")
+    switched, threshold = summary.get("alpha_switched_at_frame"), summary.get("teacher_threshold")
     values = {
-        "evaluations": ", ".join(f"{value:.0f}" for value in run.eval_returns),
-        "last-5": f"{run.headline_return:.1f}",
-        "passed at": passed,
-        "promoted (first at)": promoted(run),
+        "evaluations": lambda: ", ".join(f"{value:.0f}" for value in run.eval_returns),
+        "last-5": lambda: f"{run.headline_return:.1f}",
+        "/ T": lambda: f"{run.headline_return / teacher:.2f}",
+        "final": lambda: f"{final_and_best(run)[0]:.1f}",
+        "best": lambda: f"{final_and_best(run)[1]:.1f}",
+        "passed at": lambda: passed,
+        "promoted (first at)": lambda: promoted(run),
+        "promoted": lambda: str(promotions(run)[0]),
+        "C at the end": lambda: "-" if threshold is None else f"{threshold:.0f}",
+        "alpha switched at": lambda: "-" if switched is None else f"{switched / 1000:.1f}k",
+        "D accuracy teacher / agent (last)": lambda: (
+            f"{last['accuracy_teacher']:.2f} / {last['accuracy_agent']:.2f}" if last else "-"
+        ),
+        "D steps skipped": lambda: f"{skipped:.0%}" if skipped else "-",
     }
-    return f"| {label} | " + " | ".join(values[column] for column in columns) + " |"
+    return f"| {label} | " + " | ".join(values[column]() for column in columns) + " |"
 
 
 def runs_table(study: Path, table: dict) -> str:
     columns = list(table["columns"])
-    unknown = sorted(set(columns) - {"evaluations", "last-5", "passed at", "promoted (first at)"})
+    unknown = sorted(set(columns) - set(RUN_COLUMNS))
     if unknown:
         raise ValueError(f"{Path(study) / 'tables.json'}: unknown columns {unknown}")
     lines = ["| run | " + " | ".join(columns) + " |", "|---|" + "---|" * len(columns)]

@@ -156,7 +156,32 @@ def test_runs_table_with_a_run_cut_short(study):
         # last-5 of three evaluations: their mean, 47.8
         "| cut s3 (to 30k) | 40, 52, 52 | 47.8 | 4 (29k) | 20k (51.5) |",
     ]
-    spec["t-runs"]["columns"] = ["final"]
+    spec["t-runs"]["columns"] = ["median"]
     (study / "tables.json").write_text(json.dumps(spec))
-    with pytest.raises(ValueError, match=r"unknown columns \['final'\]"):
+    with pytest.raises(ValueError, match=r"unknown columns \['median'\]"):
         study_tables.render(study, "t-runs")
+
+
+def test_runs_table_reads_the_summary(study):
+    """final and best are the summary's where a results copy kept rounded evaluations; C, the alpha
+    switch, D's last accuracies and its skipped steps come from the summary."""
+    write_run(study / "r", 4, {"eval/return": [(10_000, 40.0), (20_000, 88.0), (30_000, 75.0)]}, promoted=2)
+    summary = json.loads((study / "r" / "summary.json").read_text())
+    summary |= {
+        "final_eval_return": 74.6,
+        "best_eval_return": 87.9,
+        "teacher_threshold": 8.0,
+        "alpha_switched_at_frame": 35_000,
+        "discriminator": {"skipped_fraction": 0.574, "last": {"accuracy_teacher": 0.976, "accuracy_agent": 0.3249}},
+    }
+    (study / "r" / "summary.json").write_text(json.dumps(summary))
+    spec = json.loads((study / "tables.json").read_text())
+    columns = ["last-5", "/ T", "final", "best", "promoted", "C at the end", "alpha switched at"]
+    columns += ["D accuracy teacher / agent (last)", "D steps skipped"]
+    spec["t-runs"] = {"kind": "runs", "columns": columns, "rows": [["Swimmer"], ["r", "r"], ["d2", "d2"]]}
+    (study / "tables.json").write_text(json.dumps(spec))
+    # r: last-5 of its three evaluations 67.67, / 50 = 1.35; d2: no switch, no D record, nothing skipped
+    assert rows(study_tables.render(study, "t-runs"))[1:] == [
+        "| r | 67.7 | 1.35 | 74.6 | 87.9 | 2 | 8 | 35.0k | 0.98 / 0.32 | 57% |",
+        "| d2 | 4.0 | 0.08 | 6.0 | 6.0 | 0 | - | - | - | - |",
+    ]
