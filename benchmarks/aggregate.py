@@ -1842,7 +1842,7 @@ def study_spec(study: Path) -> dict:
         raise ValueError(f"{path}: {err}") from err
 
 
-def study_tables(study: Path) -> list[str]:
+def study_table_names(study: Path) -> list[str]:
     """The table names of ``study``'s ``tables.json``: each is a block of its README."""
     return list(study_spec(REPO / study))
 
@@ -1851,7 +1851,7 @@ def study_block(name: str) -> Block:
     return Block(lambda source, target: sibling("study_tables").render(source.roots[0], name))
 
 
-STUDY_BLOCKS = {name: study_block(name) for study in STUDIES for name in study_tables(study)}
+STUDY_BLOCKS = {name: study_block(name) for study in STUDIES for name in study_table_names(study)}
 if set(STUDY_BLOCKS) & set(BLOCKS):
     raise ValueError(f"study tables named as other blocks: {sorted(set(STUDY_BLOCKS) & set(BLOCKS))}")
 BLOCKS.update(STUDY_BLOCKS)
@@ -1872,7 +1872,7 @@ DOCUMENTS = {
     "benchmarks/results/hopper_falls/README.md": {"hopper-falls": Path("benchmarks/results/hopper_falls")},
     "benchmarks/results/random_policy/README.md": {"random-policy": Path("benchmarks/results/random_policy")},
     "docs/training.md": {"shipped-teachers": Path("examples/teachers")},
-    **{str(study / "README.md"): {name: study for name in study_tables(study)} for study in STUDIES},
+    **{str(study / "README.md"): {name: study for name in study_table_names(study)} for study in STUDIES},
     "docs/performance.md": {
         **{
             name: THROUGHPUT

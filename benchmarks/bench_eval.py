@@ -20,8 +20,10 @@ and is timed per env step; the ways alternate within each round. Reported: the m
 
 The record also holds the returns: a sequential way that played other episodes than ``sequence``
 fails the run, and so does ``at once`` if a round plays other episodes than its first round. Its
-env ``i`` is seeded ``i``, so its episodes are not the sequential ways' (env ``0``'s, one after
-another).
+env ``i`` is seeded ``i * SEED_STRIDE`` (``torchrl_sail.envs``), so its episodes are not the
+sequential ways' (env ``0``'s, one after another). HalfCheetah's episodes all last 1000 steps; where
+episodes end early (a fall), the envs that ended step on until the longest ends, which this per-step
+figure does not count.
 """
 
 from __future__ import annotations

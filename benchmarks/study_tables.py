@@ -150,6 +150,7 @@ def windows_table(study: Path, table: dict) -> str:
                 )
                 for window in found
             ]
+            cells += ["-"] * (count - len(cells))  # a run that logged fewer windows
             title = f"{label}: {name}" if index == 0 else name
             lines.append(f"| {title} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
@@ -201,11 +202,11 @@ def runs_row(run: Run, label: str, columns: list[str], teacher: float) -> str:
         "promoted (first at)": lambda: promoted(run),
         "promoted": lambda: str(promotions(run)[0]),
         "C at the end": lambda: "-" if threshold is None else f"{threshold:.0f}",
-        "alpha switched at": lambda: "-" if switched is None else f"{switched / 1000:.1f}k",
+        "alpha switched at": lambda: thousands(switched),
         "D accuracy teacher / agent (last)": lambda: (
             f"{last['accuracy_teacher']:.2f} / {last['accuracy_agent']:.2f}" if last else "-"
         ),
-        "D steps skipped": lambda: f"{skipped:.0%}" if skipped else "-",
+        "D steps skipped": lambda: "-" if skipped is None else f"{skipped:.0%}",
     }
     return f"| {label} | " + " | ".join(values[column]() for column in columns) + " |"
 
@@ -220,11 +221,15 @@ def runs_table(study: Path, table: dict) -> str:
     for row in table["rows"]:
         if len(row) == 1:
             sections.append((row[0], []))
+        elif not sections:
+            raise ValueError(f"{Path(study) / 'tables.json'}: the first row of a runs table is a section, [title]")
         else:
             label, folder = row
             sections[-1][1].append((label, cut_short(study, folder)))
     for title, runs in sections:
         returns = [run.teacher_return for _, run in runs if run.teacher_return is not None]
+        if not returns:
+            raise ValueError(f"{Path(study) / 'tables.json'}: section {title!r} has no run with a summary.json")
         teacher = statistics.median(returns)
         lines.append(f"| **{title} ({teacher:.1f})** |" + " |" * len(columns))
         lines += [runs_row(run, label, columns, teacher) for label, run in runs]

@@ -8,9 +8,10 @@
 The run's ``config.yaml`` rebuilds its env and actor (any method: ``sail_td3.py``, ``gail.py``,
 ``bc.py``), the checkpoint's weights are loaded, and ``episodes`` deterministic episodes run on a
 fresh seed (the run's seed + 20000 unless ``seed`` is given), at once on a batched env whose env
-``i`` is seeded ``seed + i`` when the run's evaluations were (``eval.vectorized``; ``vectorized=``
-says otherwise), else one after another on one env seeded ``seed``: as the run's own final
-evaluation of its kept policies, whose figures in ``summary.json`` come back. The dense return (what the paper
+``i`` is seeded ``seed + i * SEED_STRIDE`` (``torchrl_sail.envs``) when the run's evaluations were
+(``eval.vectorized``; ``vectorized=`` says otherwise), else one after another on one env seeded
+``seed``: as the run's own final evaluation of its kept policies, whose figures in ``summary.json``
+come back. The dense return (what the paper
 reports), the delayed reward r_e (what the learner saw) and the episode length are printed and
 written with their mean, std, min and max to ``<run_dir>/evaluation.json``. ``policy=best``
 evaluates the policy the run kept as its best by its own training returns (``best_policy.pt``,
@@ -19,7 +20,7 @@ best periodic evaluation (``best_evaluated_policy.pt``). The actor is the one th
 evaluations use (its ``eval.actor``) unless ``actor=online``, ``actor=target`` (a TD3 learner's
 target actor, the Polyak average of its recent weights) or ``actor=average`` (the longer average a
 run with ``eval.average_frames`` keeps) says otherwise. ``video=true`` replays the
-first episode on a rendering env (same seed: the same episode) into ``evaluation.mp4`` (or
+first episode on a rendering env (same seed: the same start) into ``evaluation.mp4`` (or
 ``.gif``) beside it.
 ``export=<dataset id>`` writes the evaluated episodes, with their dense rewards, as a local Minari
 dataset (``pip install -e '.[minari]'``): the trained agent's own trajectories, shareable and

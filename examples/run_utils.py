@@ -117,8 +117,10 @@ def evaluate_episodes(env, actor, episodes: int, max_steps: int, *, keep_rollout
     On one env (``batch_size=[]``), the episodes run one after the other. On a batched env
     (``make_sail_env(num_envs=episodes)``, :func:`utils.make_eval_env`) they run at once, one
     episode per env, until every one has ended or ``max_steps`` steps have run (an env that ends
-    early is reset and its next episode ignored): the same episodes as one env seeded like each
-    env, up to the float rounding of the actor's batched forward pass.
+    early is reset and its next episode ignored). Each env's episode starts where the episode of one
+    env seeded like it would (the reset streams are put back after the ignored episodes, so every
+    call uses one start state per env, whatever the episodes' lengths); the actor's batched forward
+    pass rounds differently from one row at a time, so a long episode can drift from that one env's.
     """
     policy = one_module_policy(actor)
     with set_exploration_type(ExplorationType.DETERMINISTIC):
@@ -148,6 +150,10 @@ def episodes_at_once(env, policy, episodes: int, max_steps: int, *, keep_rollout
     dense, delayed = torch.zeros(episodes), torch.zeros(episodes)
     length = torch.full((episodes,), max_steps)
     steps, td = [], env.reset()
+    # the envs that end early are reset and play on: their reset streams are put back afterwards, so
+    # that the next call's episodes start where they would have without those extra resets
+    streams = [gymnasium_env.unwrapped.np_random.bit_generator for gymnasium_env in env.base_env._env.envs]
+    kept = [stream.state for stream in streams]
     for step in range(max_steps):
         td, root = env.step_and_maybe_reset(policy(td))
         now = td["next"]
@@ -162,6 +168,8 @@ def episodes_at_once(env, policy, episodes: int, max_steps: int, *, keep_rollout
         if not running.any():
             break
         td = root
+    for stream, state in zip(streams, kept, strict=True):
+        stream.state = state
     rollouts = torch.stack(steps, dim=1) if keep_rollouts else None
     return [
         {

@@ -104,7 +104,8 @@ def env_factory(cfg: DictConfig, *, render_size=None, num_envs: int = 1) -> part
 
 def make_env(cfg: DictConfig, seed: int, *, render_size=None, num_envs: int = 1):
     """The run's env, seeded; ``render_size=(width, height)`` also renders ``"pixels"`` (videos);
-    ``num_envs`` > 1: a batched env whose env ``i`` is seeded ``seed + i``."""
+    ``num_envs`` > 1: a batched env whose env ``i`` is seeded ``seed + i * SEED_STRIDE``
+    (``torchrl_sail.envs.SEED_STRIDE``)."""
     env = env_factory(cfg, render_size=render_size, num_envs=num_envs)()
     env.set_seed(seed)
     return env

@@ -35,10 +35,12 @@ def test_videos_follow_the_body(name):
     assert renderer(make_sail_env(name, render_size=(64, 48), render_camera=None)).camera_id == -1
 
 
-def test_num_envs_batches_the_stack_env_i_seeded_seed_plus_i():
-    """num_envs=3: one batched env whose env i starts where one env seeded 7 + i does, the time
-    feature and the delayed reward per env; with render_size, or below 1, refused."""
+def test_num_envs_batches_the_stack_env_i_seeded_seed_plus_i_strides():
+    """num_envs=3: one batched env whose env i starts where one env seeded 7 + i * SEED_STRIDE does,
+    with the time feature per env; with render_size, or below 1, refused."""
     import torch
+
+    from torchrl_sail.envs import SEED_STRIDE
 
     batched = make_sail_env("Hopper-v4", num_envs=3)
     batched.set_seed(7)
@@ -47,7 +49,7 @@ def test_num_envs_batches_the_stack_env_i_seeded_seed_plus_i():
     assert rollout["observation"][:, :, -1].tolist() == [[1.0, 0.9990000128746033, 0.9980000257492065]] * 3
     for i in range(3):
         alone = make_sail_env("Hopper-v4")
-        alone.set_seed(7 + i)
+        alone.set_seed(7 + i * SEED_STRIDE)
         assert torch.equal(alone.reset()["observation"], rollout["observation"][i, 0])
     assert len({tuple(rollout["observation"][i, 0].tolist()) for i in range(3)}) == 3  # three start states
     with pytest.raises(ValueError, match=r"num_envs=2: must be 1 or more, and 1 with render_size=\(64, 64\)"):

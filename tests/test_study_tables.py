@@ -182,6 +182,19 @@ def test_runs_table_reads_the_summary(study):
     (study / "tables.json").write_text(json.dumps(spec))
     # r: last-5 of its three evaluations 67.67, / 50 = 1.35; d2: no switch, no D record, nothing skipped
     assert rows(study_tables.render(study, "t-runs"))[1:] == [
-        "| r | 67.7 | 1.35 | 74.6 | 87.9 | 2 | 8 | 35.0k | 0.98 / 0.32 | 57% |",
+        "| r | 67.7 | 1.35 | 74.6 | 87.9 | 2 | 8 | 35k | 0.98 / 0.32 | 57% |",
         "| d2 | 4.0 | 0.08 | 6.0 | 6.0 | 0 | - | - | - | - |",
     ]
+
+
+def test_runs_table_sections_are_checked(study):
+    spec = json.loads((study / "tables.json").read_text())
+    spec["t-runs"] = {"kind": "runs", "columns": ["last-5"], "rows": [["d1", "d1"]]}
+    (study / "tables.json").write_text(json.dumps(spec))
+    with pytest.raises(ValueError, match=r"the first row of a runs table is a section, \[title\]"):
+        study_tables.render(study, "t-runs")
+    (study / "d2" / "summary.json").unlink()
+    spec["t-runs"]["rows"] = [["Swimmer"], ["d2", "d2"]]
+    (study / "tables.json").write_text(json.dumps(spec))
+    with pytest.raises(ValueError, match="section 'Swimmer' has no run with a summary.json"):
+        study_tables.render(study, "t-runs")

@@ -30,7 +30,21 @@ from torchrl_sail.envs.absorbing import AbsorbingStateTransform
 from torchrl_sail.envs.delayed_reward import DelayedRewardTransform
 from torchrl_sail.envs.time_feature import TimeFeature
 
-__all__ = ["make_sail_env", "observation_normalizer"]
+__all__ = ["SEED_STRIDE", "make_sail_env", "observation_normalizer"]
+
+#: A batched env's env ``i`` is seeded ``seed + i * SEED_STRIDE``: far apart, so that the envs of the
+#: runs of neighbouring seeds (``seed + 1``, ...) do not replay each other's start states.
+SEED_STRIDE = 1_000_003
+
+
+class SpacedSeedsVectorEnv(gym.vector.SyncVectorEnv):
+    """gymnasium's ``SyncVectorEnv`` whose ``reset(seed=s)`` seeds env ``i`` with
+    ``s + i * SEED_STRIDE`` (gymnasium's own: ``s + i``)."""
+
+    def reset(self, *, seed=None, options=None):
+        if isinstance(seed, int):
+            seed = [seed + i * SEED_STRIDE for i in range(self.num_envs)]
+        return super().reset(seed=seed, options=options)
 
 
 def _check_env_name(name: str) -> None:
@@ -116,10 +130,11 @@ def make_sail_env(
             gymnasium's ``SyncVectorEnv`` of that many envs, with the same transforms applied to the
             batch: TorchRL's per-step work is shared by the envs, which makes deterministic
             evaluation episodes several times cheaper per env step (``benchmarks/bench_eval.py``).
-            ``set_seed(s)`` seeds env ``i`` with ``s + i``, so env ``i``'s episodes start where those of
-            a single env seeded ``s + i`` do. The vector env does not reset an env by itself
-            (``AutoresetMode.DISABLED``): TorchRL resets the done ones (``step_and_maybe_reset``), as
-            it does for its own batched envs. Not with ``render_size``. Defaults to ``1``.
+            ``set_seed(s)`` seeds env ``i`` with ``s + i * SEED_STRIDE``, so env ``i``'s episodes
+            start where those of a single env seeded so do (env ``0``'s: ``s``'s). The vector env
+            does not reset an env by itself (``AutoresetMode.DISABLED``): TorchRL resets the done
+            ones (``step_and_maybe_reset``), as it does for its own batched envs. Not with
+            ``render_size``. Defaults to ``1``.
 
     Raises:
         ValueError: for an unknown env name (with the closest registered names),
@@ -139,7 +154,7 @@ def make_sail_env(
         >>> observation_normalizer(env).frozen  # updated by every reset and step
         False
         >>> batch = make_sail_env("Hopper-v4", num_envs=3)
-        >>> _ = batch.set_seed(0)  # env i from seed 0 + i
+        >>> _ = batch.set_seed(0)  # env i from seed 0 + i * SEED_STRIDE
         >>> batch.rollout(2)["observation"].shape
         torch.Size([3, 2, 12])
     """
@@ -172,7 +187,7 @@ def make_sail_env(
         if num_envs == 1:
             base = GymEnv(env_name, device=device, **kwargs)
         else:
-            vector = gym.vector.SyncVectorEnv(
+            vector = SpacedSeedsVectorEnv(
                 [partial(gym.make, env_name, **kwargs)] * num_envs, autoreset_mode=gym.vector.AutoresetMode.DISABLED
             )
             base = GymWrapper(vector, device=device)

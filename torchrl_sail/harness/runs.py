@@ -67,6 +67,7 @@ RESUME_MAY_CHANGE = (
     "logger",
     "eval.every_frames",
     "eval.episodes",
+    "eval.vectorized",
     "eval.actor",
     "eval.other_actor",
     "eval.best_policy",
