@@ -1,5 +1,6 @@
 """Runs the example scripts as processes forked from an interpreter that has already imported
-torch, tensordict and TorchRL (shared by the example tests through ``example_runner``).
+torch, tensordict, TorchRL, torchrl_sail and matplotlib's Agg figure (shared by the example tests
+through ``example_runner``).
 
 A script started with ``python examples/<script>`` spends ~5 s importing them before its first
 line. The server pays that once per test process; each run is then a fork of it: a process of
@@ -37,6 +38,9 @@ PRELOAD = (
     "torchrl.objectives",
     "torchrl.modules",
     "hydra",
+    "torchrl_sail",  # the installed package: a run whose PYTHONPATH holds another copy still gets this one
+    "matplotlib.figure",  # learning_curve.png: a Figure rendered by Agg, no pyplot (no backend chosen)
+    "matplotlib.backends.backend_agg",
 )
 
 
