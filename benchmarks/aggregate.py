@@ -1831,6 +1831,9 @@ BLOCKS = {
 #: The studies whose README tables ``study_tables.py`` makes from their runs (each table a block of the
 #: name its ``tables.json`` gives it), relative to the repository
 STUDIES = tuple(Path("benchmarks/results") / name for name in ("preact_h200", "reward_shift_h200", "weak_swimmer_h200"))
+#: Study tables of a docs page instead of a README: page -> the folder whose ``tables.json`` lists them
+#: (their runs are the studies' folders, named relative to it)
+STUDY_PAGES = {"docs/weak_teachers.md": Path("benchmarks/results/weak_teachers")}
 
 
 def study_spec(study: Path) -> dict:
@@ -1851,7 +1854,9 @@ def study_block(name: str) -> Block:
     return Block(lambda source, target: sibling("study_tables").render(source.roots[0], name))
 
 
-STUDY_BLOCKS = {name: study_block(name) for study in STUDIES for name in study_table_names(study)}
+STUDY_BLOCKS = {
+    name: study_block(name) for study in (*STUDIES, *STUDY_PAGES.values()) for name in study_table_names(study)
+}
 if set(STUDY_BLOCKS) & set(BLOCKS):
     raise ValueError(f"study tables named as other blocks: {sorted(set(STUDY_BLOCKS) & set(BLOCKS))}")
 BLOCKS.update(STUDY_BLOCKS)
@@ -1873,6 +1878,7 @@ DOCUMENTS = {
     "benchmarks/results/random_policy/README.md": {"random-policy": Path("benchmarks/results/random_policy")},
     "docs/training.md": {"shipped-teachers": Path("examples/teachers")},
     **{str(study / "README.md"): {name: study for name in study_table_names(study)} for study in STUDIES},
+    **{page: {name: study for name in study_table_names(study)} for page, study in STUDY_PAGES.items()},
     "docs/performance.md": {
         **{
             name: THROUGHPUT
