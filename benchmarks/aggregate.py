@@ -1830,7 +1830,10 @@ BLOCKS = {
 
 #: The studies whose README tables ``study_tables.py`` makes from their runs (each table a block of the
 #: name its ``tables.json`` gives it), relative to the repository
-STUDIES = tuple(Path("benchmarks/results") / name for name in ("preact_h200", "reward_shift_h200", "weak_swimmer_h200"))
+STUDIES = tuple(
+    Path("benchmarks/results") / name
+    for name in ("actor_saturation_cpu", "preact_h200", "reward_shift_h200", "weak_swimmer_h200")
+)
 #: Study tables of a docs page instead of a README: page -> the folder whose ``tables.json`` lists them
 #: (their runs are the studies' folders, named relative to it)
 STUDY_PAGES = {"docs/weak_teachers.md": Path("benchmarks/results/weak_teachers")}

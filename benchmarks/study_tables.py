@@ -22,11 +22,12 @@ same name, and ``--check`` (``tests/test_generated_docs.py``) fails where one di
 - ``runs``: ``{"columns": [...], "rows": [[section], [label, run], ...]}``: one row per run, its
   label then the columns named (:data:`RUN_COLUMNS`: every evaluation, last-5 and over the
   teacher, final, best, passed at, the promotions (with the first's frame), the threshold C and the
-  frame alpha switched at, D's last accuracies and the share of D steps skipped, from the run's
-  summary; ``-`` where it has none); a row of one item starts a section of runs with one teacher, written with that
-  teacher's return (their summaries'). A run cut short, without a
-  ``summary.json``, is labelled with its last evaluation's frame, passes the teacher at its first
-  evaluation above the section's teacher return (written beside it) and promoted what it logged.
+  frame alpha switched at, D's last accuracies, the share of D steps skipped and the last frame D
+  was saturated (both accuracies >= 0.98; ``never``), from the run's summary; ``-`` where it has
+  none); a row of one item starts a section of runs with one teacher, written with that teacher's
+  return (their summaries'). A run cut short, without a ``summary.json``, is labelled with its last
+  evaluation's frame, passes the teacher at its first evaluation above the section's teacher return
+  (written beside it) and promoted what it logged.
 - ``evaluations``: ``{"first": frames, "last": frames, "header": [first column, run column, ...],
   "rows": [[label, run, ...], ...]}``: each run's evaluations from ``first`` to ``last`` frames,
   rounded to integers.
@@ -178,6 +179,7 @@ RUN_COLUMNS = (
     "alpha switched at",
     "D accuracy teacher / agent (last)",
     "D steps skipped",
+    "D saturated until",
 )
 
 
@@ -189,8 +191,12 @@ def runs_row(run: Run, label: str, columns: list[str], teacher: float) -> str:
         first = next(((frames, value) for frames, value in run.curve if value > teacher), None)
         passed = "-" if first is None else f"{thousands(first[0])} ({first[1]:.1f})"
     summary = run.summary or {}
-    last = (summary.get("discriminator") or {}).get("last") or {}
-    skipped = (summary.get("discriminator") or {}).get("skipped_fraction")
+    discriminator = summary.get("discriminator") or {}
+    last, skipped = discriminator.get("last") or {}, discriminator.get("skipped_fraction")
+    # the last logged point with D's accuracy at 0.98 or more on both sides; "never" where none was
+    saturated = thousands(discriminator.get("last_saturated_frame")) if discriminator else "-"
+    if discriminator and discriminator.get("last_saturated_frame") is None:
+        saturated = "never"
     switched, threshold = summary.get("alpha_switched_at_frame"), summary.get("teacher_threshold")
     values = {
         "evaluations": lambda: ", ".join(f"{value:.0f}" for value in run.eval_returns),
@@ -207,6 +213,7 @@ def runs_row(run: Run, label: str, columns: list[str], teacher: float) -> str:
             f"{last['accuracy_teacher']:.2f} / {last['accuracy_agent']:.2f}" if last else "-"
         ),
         "D steps skipped": lambda: "-" if skipped is None else f"{skipped:.0%}",
+        "D saturated until": lambda: saturated,
     }
     return f"| {label} | " + " | ".join(values[column]() for column in columns) + " |"
 
