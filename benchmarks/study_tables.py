@@ -16,9 +16,11 @@ same name, and ``--check`` (``tests/test_generated_docs.py``) fails where one di
 - ``means``: ``{"of": <a seeds table>}``: per case and setting of that table, the last-5's mean and
   sample std over its seeds.
 - ``windows``: ``{"window": frames, "rows": [[label, run, [part, ...]], ...]}``, per window of frames
-  (:func:`windows.windows`), the part ``d`` (D's accuracy on teacher / agent rows) and the part
-  ``actor`` (the actor's saturation / mean pre-tanh ``|x|``), one line each; ``-`` where the run
-  logged none in a window.
+  (:func:`windows.windows`), one line per part (:data:`PARTS`): ``d`` (D's accuracy on teacher /
+  agent rows), ``actor`` (the actor's saturation / mean pre-tanh ``|x|``), ``eval`` (the mean
+  evaluation), ``train`` (the best training episode), ``reward`` (``-log(1 - D)`` on agent rows, mean
+  / std), ``logit`` (D's mean logit on teacher / agent rows) and ``gp`` (the gradient penalty);
+  ``-`` where the run logged none in a window.
 - ``runs``: ``{"columns": [...], "rows": [[section], [label, run], ...]}``: one row per run, its
   label then the columns named (:data:`RUN_COLUMNS`: every evaluation, last-5 and over the
   teacher, final, best, passed at, the promotions (with the first's frame), the threshold C and the
@@ -31,6 +33,14 @@ same name, and ``--check`` (``tests/test_generated_docs.py``) fails where one di
 - ``evaluations``: ``{"first": frames, "last": frames, "header": [first column, run column, ...],
   "rows": [[label, run, ...], ...]}``: each run's evaluations from ``first`` to ``last`` frames,
   rounded to integers.
+- ``run-windows``: ``{"run": run, "window": frames, "columns": [[header, format, [name, ...]], ...]}``:
+  one run, one row per window of frames, each column ``format`` filled with the window's values of
+  :data:`windows.COLUMNS` named (e.g. ``["D accuracy teacher / agent", "{:.2f} / {:.2f}", ["D acc
+  teacher", "D acc agent"]]``); ``-`` where the run logged none of one.
+- ``grid``: ``{"header": [...], "labels": n, "cell": [format, [[tag, stat, first, last], ...]],
+  "rows": [[label, ..., run, ...], ...]}``: each row's first ``n`` items as written, then one cell
+  per run, ``format`` filled with each logged scalar's ``stat`` over the frames from ``first`` to
+  ``last``, both included: ``mean``, ``max``, or ``at`` (its value at ``last``).
 """
 
 from __future__ import annotations
@@ -43,6 +53,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from aggregate import Run, load_run, study_spec  # noqa: E402
+from windows import COLUMNS as WINDOW_COLUMNS  # noqa: E402
 from windows import windows  # noqa: E402
 
 from torchrl_sail.harness import read_scalar  # noqa: E402
@@ -132,6 +143,11 @@ def means_table(study: Path, table: dict, tables: dict) -> str:
 PARTS = {
     "d": ("D", ("D acc teacher", "D acc agent"), ("{:.3f}", "{:.3f}")),
     "actor": ("actor", ("actor saturated", "actor |pre-tanh|"), ("{:.2f}", "{:.1f}")),
+    "eval": ("eval", ("eval",), ("{:.1f}",)),
+    "train": ("best training episode", ("train max",), ("{:.1f}",)),
+    "reward": ("-log(1 - D) agent mean / std", ("-log(1-D) agent", "-log(1-D) agent std"), ("{:.2f}", "{:.2f}")),
+    "logit": ("logit teacher / agent", ("logit teacher", "logit agent"), ("{:.2f}", "{:.2f}")),
+    "gp": ("gradient penalty", ("GP",), ("{:.4f}",)),
 }
 
 
@@ -154,6 +170,48 @@ def windows_table(study: Path, table: dict) -> str:
             cells += ["-"] * (count - len(cells))  # a run that logged fewer windows
             title = f"{label}: {name}" if index == 0 else name
             lines.append(f"| {title} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def run_windows_table(study: Path, table: dict) -> str:
+    size, columns = int(table["window"]), table["columns"]
+    unknown = sorted({name for _, _, names in columns for name in names} - {name for name, _, _ in WINDOW_COLUMNS})
+    if unknown:
+        raise ValueError(f"{Path(study) / 'tables.json'}: unknown window columns {unknown}")
+    lines = ["| frames | " + " | ".join(header for header, _, _ in columns) + " |", "|---" * (len(columns) + 1) + "|"]
+    for window in windows(Path(study) / table["run"], size):
+        cells = [
+            "-" if any(math.isnan(window[name]) for name in names) else form.format(*(window[name] for name in names))
+            for _, form, names in columns
+        ]
+        span = f"{(window['frames'] - size) / 1000:g}-{window['frames'] / 1000:g}k"
+        lines.append(f"| {span} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+#: How a grid cell's scalar becomes one number over the frames ``first <= f <= last``
+STATS = {"mean": statistics.mean, "max": max, "at": lambda values: values[-1]}
+
+
+def grid_stat(folder: Path, tag: str, stat: str, first: int, last: int) -> float:
+    rows = [(frames, value) for frames, value in read_scalar(folder, tag) if first <= frames <= last]
+    if stat == "at":
+        rows = [(frames, value) for frames, value in rows if frames == last]
+    if not rows:
+        raise ValueError(f"{folder}: no {tag} logged from {first} to {last} frames")
+    return STATS[stat]([value for _, value in rows])
+
+
+def grid_table(study: Path, table: dict) -> str:
+    form, stats = table["cell"]
+    unknown = sorted({stat for _, stat, _, _ in stats} - set(STATS))
+    if unknown:
+        raise ValueError(f"{Path(study) / 'tables.json'}: unknown stats {unknown} (not {', '.join(STATS)})")
+    labels = int(table["labels"])
+    lines = ["| " + " | ".join(table["header"]) + " |", "|---" * len(table["header"]) + "|"]
+    for row in table["rows"]:
+        cells = [form.format(*(grid_stat(Path(study) / folder, *stat) for stat in stats)) for folder in row[labels:]]
+        lines.append("| " + " | ".join([*row[:labels], *cells]) + " |")
     return "\n".join(lines)
 
 
@@ -275,7 +333,11 @@ def render(study: Path, name: str) -> str:
         return evaluations_table(study, table)
     if kind == "runs":
         return runs_table(study, table)
-    kinds = "seeds, means, windows, runs or evaluations"
+    if kind == "run-windows":
+        return run_windows_table(study, table)
+    if kind == "grid":
+        return grid_table(study, table)
+    kinds = "seeds, means, windows, runs, evaluations, run-windows or grid"
     raise ValueError(f"{Path(study) / 'tables.json'}: table {name!r} has kind {kind!r}, not {kinds}")
 
 

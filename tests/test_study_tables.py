@@ -113,6 +113,15 @@ def test_windows_table(study):
         "| d, s1: D | 0.600 / 0.700 | 0.900 / 1.000 | - / - |",
         "| p, s1: actor | 0.25 / 2.0 | 0.50 / 3.1 | - / - |",
     ]
+    # the other parts: d1's evaluations (10, 20 | 60, 40 | 80, 70), and tags it never logged
+    spec = json.loads((study / "tables.json").read_text())
+    spec["t-windows"]["rows"] = [["d, s1", "d1", ["eval", "train", "gp"]]]
+    (study / "tables.json").write_text(json.dumps(spec))
+    assert rows(study_tables.render(study, "t-windows")) == [
+        "| d, s1: eval | 15.0 | 50.0 | 75.0 |",
+        "| best training episode | - | - | - |",
+        "| gradient penalty | - | - | - |",
+    ]
 
 
 def test_evaluations_table(study):
@@ -125,7 +134,8 @@ def test_bad_tables_are_named(study):
     spec = json.loads((study / "tables.json").read_text())
     spec["t-odd"] = {"kind": "odd"}
     (study / "tables.json").write_text(json.dumps(spec))
-    with pytest.raises(ValueError, match="'t-odd' has kind 'odd', not seeds, means, windows, runs or evaluations"):
+    kinds = "seeds, means, windows, runs, evaluations, run-windows or grid"
+    with pytest.raises(ValueError, match=f"'t-odd' has kind 'odd', not {kinds}"):
         study_tables.render(study, "t-odd")
     (study / "d2" / "summary.json").unlink()
     with pytest.raises(ValueError, match=r"d2: no summary.json or no evaluations to show"):
@@ -208,3 +218,51 @@ def test_runs_table_sections_are_checked(study):
     (study / "tables.json").write_text(json.dumps(spec))
     with pytest.raises(ValueError, match="section 'Swimmer' has no run with a summary.json"):
         study_tables.render(study, "t-runs")
+
+
+def test_run_windows_table(study):
+    """One run per window: d1's evaluations (10, 20 | 60, 40 | 80, 70) and D's accuracies (5k, 15k | 25k)."""
+    spec = json.loads((study / "tables.json").read_text())
+    columns = [
+        ["eval", "{:.1f}", ["eval"]],
+        ["D", "{:.2f} / {:.2f}", ["D acc teacher", "D acc agent"]],
+        ["Q", "{:.1f}", ["Q"]],
+    ]
+    spec["t-run-windows"] = {"kind": "run-windows", "run": "d1", "window": 20_000, "columns": columns}
+    (study / "tables.json").write_text(json.dumps(spec))
+    assert study_tables.render(study, "t-run-windows").splitlines() == [
+        "| frames | eval | D | Q |",
+        "|---|---|---|---|",
+        "| 0-20k | 15.0 | 0.60 / 0.70 | - |",
+        "| 20-40k | 50.0 | 0.90 / 1.00 | - |",
+        "| 40-60k | 75.0 | - | - |",
+    ]
+    spec["t-run-windows"]["columns"] = [["x", "{}", ["median eval"]]]
+    (study / "tables.json").write_text(json.dumps(spec))
+    with pytest.raises(ValueError, match=r"unknown window columns \['median eval'\]"):
+        study_tables.render(study, "t-run-windows")
+
+
+def test_grid_table(study):
+    """A cell per run from its scalars over a frame range, both ends included."""
+    spec = json.loads((study / "tables.json").read_text())
+    stats = [["eval/return", "at", 40_000, 40_000], ["eval/return", "mean", 20_000, 40_000]]
+    stats.append(["eval/return", "max", 10_000, 60_000])
+    spec["t-grid"] = {
+        "kind": "grid",
+        "header": ["setting", "s1", "s2"],
+        "labels": 1,
+        "cell": ["{:.0f} ({:.1f}; max {:.0f})", stats],
+        "rows": [["defaults", "d1", "d2"]],
+    }
+    (study / "tables.json").write_text(json.dumps(spec))
+    # d1: 40 at 40k, (20 + 60 + 40) / 3 = 40.0, max 80; d2: 4, (2 + 3 + 4) / 3 = 3.0, max 6
+    assert rows(study_tables.render(study, "t-grid")) == ["| defaults | 40 (40.0; max 80) | 4 (3.0; max 6) |"]
+    spec["t-grid"]["cell"][1] = [["eval/return", "at", 45_000, 45_000]]
+    (study / "tables.json").write_text(json.dumps(spec))
+    with pytest.raises(ValueError, match="no eval/return logged from 45000 to 45000 frames"):
+        study_tables.render(study, "t-grid")
+    spec["t-grid"]["cell"][1] = [["eval/return", "median", 0, 60_000]]
+    (study / "tables.json").write_text(json.dumps(spec))
+    with pytest.raises(ValueError, match=r"unknown stats \['median'\]"):
+        study_tables.render(study, "t-grid")
