@@ -1832,7 +1832,13 @@ BLOCKS = {
 #: name its ``tables.json`` gives it), relative to the repository
 STUDIES = tuple(
     Path("benchmarks/results") / name
-    for name in ("actor_saturation_cpu", "preact_h200", "reward_shift_h200", "weak_swimmer_h200")
+    for name in (
+        "actor_saturation_cpu",
+        "preact_h200",
+        "reward_form_h200",
+        "reward_shift_h200",
+        "weak_swimmer_h200",
+    )
 )
 #: Study tables of a docs page instead of a README: page -> the folder whose ``tables.json`` lists them
 #: (their runs are the studies' folders, named relative to it)
