@@ -1836,6 +1836,7 @@ STUDIES = tuple(
         "actor_saturation_cpu",
         "preact_h200",
         "reward_form_h200",
+        "reward_level_cpu",
         "reward_shift_h200",
         "weak_swimmer_h200",
     )
