@@ -1835,6 +1835,7 @@ STUDIES = tuple(
     for name in (
         "actor_saturation_cpu",
         "preact_h200",
+        "precision_h200",
         "reward_form_h200",
         "reward_level_cpu",
         "reward_shift_h200",

@@ -24,12 +24,13 @@ same name, and ``--check`` (``tests/test_generated_docs.py``) fails where one di
 - ``runs``: ``{"columns": [...], "rows": [[section], [label, run], ...]}``: one row per run, its
   label then the columns named (:data:`RUN_COLUMNS`: every evaluation, last-5 and over the
   teacher, final, best, passed at, the promotions (with the first's frame), the threshold C and the
-  frame alpha switched at, D's last accuracies, the share of D steps skipped and the last frame D
-  was saturated (both accuracies >= 0.98; ``never``), from the run's summary; ``-`` where it has
-  none); a row of one item starts a section of runs with one teacher, written with that teacher's
-  return (their summaries'). A run cut short, without a ``summary.json``, is labelled with its last
-  evaluation's frame, passes the teacher at its first evaluation above the section's teacher return
-  (written beside it) and promoted what it logged.
+  frame alpha switched at, D's last accuracies, the share of D steps skipped, the last frame D
+  was saturated (both accuracies >= 0.98; ``never``) and the share of logged points it was, and
+  the run's frames per second, from the run's summary; ``-`` where it has none); a row of one item
+  starts a section of runs with one teacher, written with that teacher's return (their
+  summaries'). A run cut short, without a ``summary.json``, is labelled with its last evaluation's
+  frame, passes the teacher at its first evaluation above the section's teacher return (written
+  beside it) and promoted what it logged.
 - ``evaluations``: ``{"first": frames, "last": frames, "header": [first column, run column, ...],
   "rows": [[label, run, ...], ...]}``: each run's evaluations from ``first`` to ``last`` frames,
   rounded to integers.
@@ -238,6 +239,8 @@ RUN_COLUMNS = (
     "D accuracy teacher / agent (last)",
     "D steps skipped",
     "D saturated until",
+    "D saturated points",
+    "frames/s",
 )
 
 
@@ -272,6 +275,10 @@ def runs_row(run: Run, label: str, columns: list[str], teacher: float) -> str:
         ),
         "D steps skipped": lambda: "-" if skipped is None else f"{skipped:.0%}",
         "D saturated until": lambda: saturated,
+        "D saturated points": lambda: (
+            "-" if discriminator.get("saturated_fraction") is None else f"{discriminator['saturated_fraction']:.0%}"
+        ),
+        "frames/s": lambda: "-" if summary.get("frames_per_second") is None else f"{summary['frames_per_second']:.0f}",
     }
     return f"| {label} | " + " | ".join(values[column]() for column in columns) + " |"
 

@@ -182,9 +182,11 @@ def test_runs_table_reads_the_summary(study):
         "best_eval_return": 87.9,
         "teacher_threshold": 8.0,
         "alpha_switched_at_frame": 35_000,
+        "frames_per_second": 401.6,
         "discriminator": {
             "skipped_fraction": 0.574,
             "last_saturated_frame": 28_500,
+            "saturated_fraction": 0.1,
             "last": {"accuracy_teacher": 0.976, "accuracy_agent": 0.3249},
         },
     }
@@ -194,16 +196,17 @@ def test_runs_table_reads_the_summary(study):
     (study / "d1" / "summary.json").write_text(json.dumps(never))
     spec = json.loads((study / "tables.json").read_text())
     columns = ["last-5", "/ T", "final", "best", "promoted", "C at the end", "alpha switched at"]
-    columns += ["D accuracy teacher / agent (last)", "D steps skipped", "D saturated until"]
+    columns += ["D accuracy teacher / agent (last)", "D steps skipped", "D saturated until", "D saturated points"]
+    columns += ["frames/s"]
     rows_ = [["Swimmer"], ["r", "r"], ["d2", "d2"], ["d1", "d1"]]
     spec["t-runs"] = {"kind": "runs", "columns": columns, "rows": rows_}
     (study / "tables.json").write_text(json.dumps(spec))
     # r: last-5 of its three evaluations 67.67, / 50 = 1.35; d2: no switch, no D record, nothing skipped;
     # d1: a D record without a saturated point; last-5 (20+60+40+80+70)/5 = 54.0
     assert rows(study_tables.render(study, "t-runs"))[1:] == [
-        "| r | 67.7 | 1.35 | 74.6 | 87.9 | 2 | 8 | 35k | 0.98 / 0.32 | 57% | 28.5k |",
-        "| d2 | 4.0 | 0.08 | 6.0 | 6.0 | 0 | - | - | - | - | - |",
-        "| d1 | 54.0 | 1.08 | 70.0 | 80.0 | 5 | - | - | - | 0% | never |",
+        "| r | 67.7 | 1.35 | 74.6 | 87.9 | 2 | 8 | 35k | 0.98 / 0.32 | 57% | 28.5k | 10% | 402 |",
+        "| d2 | 4.0 | 0.08 | 6.0 | 6.0 | 0 | - | - | - | - | - | - | - |",
+        "| d1 | 54.0 | 1.08 | 70.0 | 80.0 | 5 | - | - | - | 0% | never | - | - |",
     ]
 
 
