@@ -42,11 +42,16 @@ same name, and ``--check`` (``tests/test_generated_docs.py``) fails where one di
   "rows": [[label, ..., run, ...], ...]}``: each row's first ``n`` items as written, then one cell
   per run, ``format`` filled with each logged scalar's ``stat`` over the frames from ``first`` to
   ``last``, both included: ``mean``, ``max``, or ``at`` (its value at ``last``).
+- ``csv``: ``{"file": csv file, "keys": [column, ...], "header": [...], "cells": [[format, how],
+  ...]}``: one row per value of ``keys`` (in the file's order, written first), then each cell's
+  ``format`` filled with that group's rows' columns by name (numbers as floats): ``how`` is
+  ``join`` (every row, joined by commas) or ``first`` (its first row).
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 import math
 import statistics
 import sys
@@ -216,6 +221,37 @@ def grid_table(study: Path, table: dict) -> str:
     return "\n".join(lines)
 
 
+def csv_table(study: Path, table: dict) -> str:
+    path = Path(study) / table["file"]
+    with path.open(newline="") as handle:
+        records = [{name: _number(value) for name, value in row.items()} for row in csv.DictReader(handle)]
+    groups: dict[tuple, list[dict]] = {}
+    for record in records:
+        groups.setdefault(tuple(str(record[key]) for key in table["keys"]), []).append(record)
+    lines = ["| " + " | ".join(table["header"]) + " |", "|---" * len(table["header"]) + "|"]
+    for key, rows in groups.items():
+        cells = []
+        for form, how in table["cells"]:
+            try:
+                if how == "join":
+                    cells.append(", ".join(form.format(**row) for row in rows))
+                elif how == "first":
+                    cells.append(form.format(**rows[0]))
+                else:
+                    raise ValueError(f"{path}: a cell is 'join' or 'first', not {how!r}")
+            except KeyError as err:
+                raise ValueError(f"{path}: no column {err} (it has {', '.join(rows[0])})") from err
+        lines.append("| " + " | ".join([*key, *cells]) + " |")
+    return "\n".join(lines)
+
+
+def _number(value: str) -> float | str:
+    try:
+        return float(value)
+    except ValueError:
+        return value
+
+
 def cut_short(study: Path, folder: str) -> Run:
     """A run stopped before its end (no ``summary.json``), read with the evaluations it logged."""
     run = load_run(Path(study) / folder)
@@ -344,7 +380,9 @@ def render(study: Path, name: str) -> str:
         return run_windows_table(study, table)
     if kind == "grid":
         return grid_table(study, table)
-    kinds = "seeds, means, windows, runs, evaluations, run-windows or grid"
+    if kind == "csv":
+        return csv_table(study, table)
+    kinds = "seeds, means, windows, runs, evaluations, run-windows, grid or csv"
     raise ValueError(f"{Path(study) / 'tables.json'}: table {name!r} has kind {kind!r}, not {kinds}")
 
 

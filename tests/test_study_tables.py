@@ -134,7 +134,7 @@ def test_bad_tables_are_named(study):
     spec = json.loads((study / "tables.json").read_text())
     spec["t-odd"] = {"kind": "odd"}
     (study / "tables.json").write_text(json.dumps(spec))
-    kinds = "seeds, means, windows, runs, evaluations, run-windows or grid"
+    kinds = "seeds, means, windows, runs, evaluations, run-windows, grid or csv"
     with pytest.raises(ValueError, match=f"'t-odd' has kind 'odd', not {kinds}"):
         study_tables.render(study, "t-odd")
     (study / "d2" / "summary.json").unlink()
@@ -269,3 +269,27 @@ def test_grid_table(study):
     (study / "tables.json").write_text(json.dumps(spec))
     with pytest.raises(ValueError, match=r"unknown stats \['median'\]"):
         study_tables.render(study, "t-grid")
+
+
+def test_csv_table(study):
+    """Rows grouped by the keys in the file's order: each group's rows joined, or its first."""
+    (study / "points.csv").write_text(
+        "run,env,frames,sat,reward\na,Hopper,10,1.0,0.75\na,Hopper,11,0.5,0.5\nb,Swimmer,10,0.25,0\n"
+    )
+    spec = json.loads((study / "tables.json").read_text())
+    spec["t-csv"] = {
+        "kind": "csv",
+        "file": "points.csv",
+        "keys": ["env"],
+        "header": ["env", "saturation at 10, 11", "first reward"],
+        "cells": [["{sat:.2f}", "join"], ["{reward:.3f}", "first"]],
+    }
+    (study / "tables.json").write_text(json.dumps(spec))
+    assert rows(study_tables.render(study, "t-csv")) == [
+        "| Hopper | 1.00, 0.50 | 0.750 |",
+        "| Swimmer | 0.25 | 0.000 |",
+    ]
+    spec["t-csv"]["cells"] = [["{q:.1f}", "first"]]
+    (study / "tables.json").write_text(json.dumps(spec))
+    with pytest.raises(ValueError, match="points.csv: no column 'q'"):
+        study_tables.render(study, "t-csv")
