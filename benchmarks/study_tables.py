@@ -275,7 +275,7 @@ RUN_COLUMNS = (
     "D accuracy teacher / agent (last)",
     "D steps skipped",
     "D saturated until",
-    "D saturated points",
+    "D saturated (share of logged points)",
     "frames/s",
 )
 
@@ -311,7 +311,7 @@ def runs_row(run: Run, label: str, columns: list[str], teacher: float) -> str:
         ),
         "D steps skipped": lambda: "-" if skipped is None else f"{skipped:.0%}",
         "D saturated until": lambda: saturated,
-        "D saturated points": lambda: (
+        "D saturated (share of logged points)": lambda: (
             "-" if discriminator.get("saturated_fraction") is None else f"{discriminator['saturated_fraction']:.0%}"
         ),
         "frames/s": lambda: "-" if summary.get("frames_per_second") is None else f"{summary['frames_per_second']:.0f}",

@@ -196,7 +196,12 @@ def test_runs_table_reads_the_summary(study):
     (study / "d1" / "summary.json").write_text(json.dumps(never))
     spec = json.loads((study / "tables.json").read_text())
     columns = ["last-5", "/ T", "final", "best", "promoted", "C at the end", "alpha switched at"]
-    columns += ["D accuracy teacher / agent (last)", "D steps skipped", "D saturated until", "D saturated points"]
+    columns += [
+        "D accuracy teacher / agent (last)",
+        "D steps skipped",
+        "D saturated until",
+        "D saturated (share of logged points)",
+    ]
     columns += ["frames/s"]
     rows_ = [["Swimmer"], ["r", "r"], ["d2", "d2"], ["d1", "d1"]]
     spec["t-runs"] = {"kind": "runs", "columns": columns, "rows": rows_}
