@@ -356,6 +356,18 @@ def evaluations_table(study: Path, table: dict) -> str:
     return "\n".join(lines)
 
 
+#: Each kind's table, from the study folder and the table's entry of ``tables.json`` (``means`` apart)
+RENDERERS = {
+    "seeds": seeds_table,
+    "windows": windows_table,
+    "runs": runs_table,
+    "evaluations": evaluations_table,
+    "run-windows": run_windows_table,
+    "grid": grid_table,
+    "csv": csv_table,
+}
+
+
 def render(study: Path, name: str) -> str:
     """The Markdown of ``study``'s table ``name``.
 
@@ -366,23 +378,12 @@ def render(study: Path, name: str) -> str:
     if name not in tables:
         raise ValueError(f"{Path(study) / 'tables.json'}: no table {name!r} (it has {', '.join(tables)})")
     table, kind = tables[name], tables[name].get("kind")
-    if kind == "seeds":
-        return seeds_table(study, table)
-    if kind == "means":
+    if kind == "means":  # the one kind that reads another table
         return means_table(study, table, tables)
-    if kind == "windows":
-        return windows_table(study, table)
-    if kind == "evaluations":
-        return evaluations_table(study, table)
-    if kind == "runs":
-        return runs_table(study, table)
-    if kind == "run-windows":
-        return run_windows_table(study, table)
-    if kind == "grid":
-        return grid_table(study, table)
-    if kind == "csv":
-        return csv_table(study, table)
-    kinds = "seeds, means, windows, runs, evaluations, run-windows, grid or csv"
+    if kind in RENDERERS:
+        return RENDERERS[kind](study, table)
+    names = ["seeds", "means", *list(RENDERERS)[1:]]
+    kinds = f"{', '.join(names[:-1])} or {names[-1]}"
     raise ValueError(f"{Path(study) / 'tables.json'}: table {name!r} has kind {kind!r}, not {kinds}")
 
 
