@@ -387,7 +387,7 @@ class EvalConfig:
     every_frames: int = 10_000  # deterministic evaluation cadence (the authors' code has none by default)
     episodes: int = 5
     # true: an evaluation's episodes run at once, on a batched env of `episodes` envs seeded
-    # seed + i * 1000003 (less time per step where episodes last alike) | false: one env, one episode after another
+    # seed + i * SEED_STRIDE (torchrl_sail.envs; less time per step where episodes last alike) | false: one env
     vectorized: bool = True
     # the actor a run evaluates, keeps as its best policy and ships: online | target | average
     actor: EvaluatedActor = EvaluatedActor.online
@@ -441,7 +441,7 @@ class EvaluateConfig:
 
     run_dir: str = MISSING  # a run folder written by a training script (config.yaml + checkpoint/)
     episodes: int = 10  # deterministic episodes
-    # true: at once, on a batched env whose env i is seeded seed + i * 1000003 | false: one after another, on
+    # true: at once, on a batched env whose env i is seeded seed + i * SEED_STRIDE | false: one after another, on
     # one env seeded seed | null: as the run's own evaluations (its eval.vectorized; false for runs
     # saved before it). Episode 0 starts where the video's does either way.
     vectorized: bool | None = None
