@@ -151,8 +151,9 @@ def episodes_at_once(env, policy, episodes: int, max_steps: int, *, keep_rollout
     length = torch.full((episodes,), max_steps)
     steps, td = [], env.reset()
     # the envs that end early are reset and play on: their reset streams are put back afterwards, so
-    # that the next call's episodes start where they would have without those extra resets
-    streams = [gymnasium_env.unwrapped.np_random.bit_generator for gymnasium_env in env.base_env._env.envs]
+    # that the next call's episodes start where they would have without those extra resets (TorchRL's
+    # GymWrapper hands unknown attributes to the gymnasium vector env: ``envs`` is its list of envs)
+    streams = [gymnasium_env.unwrapped.np_random.bit_generator for gymnasium_env in env.base_env.envs]
     kept = [stream.state for stream in streams]
     for step in range(max_steps):
         td, root = env.step_and_maybe_reset(policy(td))

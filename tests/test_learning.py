@@ -65,7 +65,7 @@ def weak_teacher(path):
 def test_sail_surpasses_weak_teacher(tmp_path, request):
     precision = request.config.getoption("--precision")
     if precision == "bf16" and not native_bf16_matmul("cpu"):
-        pytest.skip("bf16 needs AVX-512 or AMX on this CPU: emulated, the run would take ~20x longer")
+        pytest.skip("bf16 needs AVX-512 or AMX on this CPU: emulated, the run would take many times longer")
     teacher_return = weak_teacher(tmp_path / "teacher")
     assert teacher_return == 18.0  # seeded: the documented teacher
 

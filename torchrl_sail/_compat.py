@@ -230,11 +230,11 @@ def multi_step(
 def render_fps(env, default: int = 30) -> int:
     """The wrapped gymnasium env's ``metadata["render_fps"]`` (MuJoCo tasks: ``1 / dt``), else ``default``.
 
-    ``env`` is a TorchRL env over a ``GymEnv`` (``env.base_env``); the gymnasium env is its
-    private ``_env``.
+    ``env`` is a TorchRL env over a ``GymEnv`` (``env.base_env``), which hands attributes it does not
+    have, such as ``metadata``, to the gymnasium env it wraps.
     """
     base = getattr(env, "base_env", env)
-    return int(base._env.metadata.get("render_fps", default))
+    return int(base.metadata.get("render_fps", default))
 
 
 # ----------------------------------------------------------------------------- tensordict

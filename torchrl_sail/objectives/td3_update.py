@@ -377,8 +377,8 @@ class TD3Update:
         if precision == "bf16" and not native_bf16_matmul(loss.max_action.device):
             warnings.warn(
                 f"precision='bf16' on a {loss.max_action.device.type} without bf16 matrix hardware (on a CPU: "
-                "AVX-512 or AMX): torch emulates the products, ~20x slower per TD3 step than fp32 on an "
-                "AVX2-only CPU. Use precision='fp32' here.",
+                "AVX-512 or AMX): torch emulates the products, many times slower per TD3 step than fp32. "
+                "Use precision='fp32' here.",
                 UserWarning,
                 stacklevel=2,
             )
