@@ -306,7 +306,8 @@ class OptimConfig:
     # TorchRL's sota scripts): the step's kernels launched as one graph, the Adam steps capturable.
     cudagraphs: bool = False
     # The actor's extras (all off by default; algo=dac_published sets them as Kostrikov et al.'s DAC):
-    actor_updates_after: int = 0  # the actor is first updated at this gradient step (then every policy_delay-th)
+    # the actor is first updated at this gradient step (then every policy_delay-th); the targets move from the start
+    actor_updates_after: int = 0
     actor_max_grad_norm: float | None = None  # clip the actor's gradients to this global norm
     actor_lr_decay: LRDecayConfig | None = None  # {rate, every_frames}: actor lr * rate ** (frames // every_frames)
     # adds coef * sum_j x_j^2 to the actor loss, x its pre-tanh output (rlkit's policy_pre_activation_weight;

@@ -254,6 +254,9 @@ class TD3Block:
         alpha_scheduler: holds the teacher share, ``.alpha``.
         policy_delay, actor_updates_after: the actor steps at every ``policy_delay``-th gradient step
             from step ``actor_updates_after`` on.
+        update_targets: the target networks' Polyak step alone, run at every ``policy_delay``-th
+            gradient step before the actor starts (Kostrikov et al.'s release moves the critic's
+            target from the first step on; the actor's, its actor unchanged, stays where it is).
         reward_tag: the metric that logs the block's mean reward.
         lr_decay: an :class:`ActorLRDecay`, run before each block (``None``: a constant rate).
         drift: an :class:`~utils.ActorDrift` measured over each block (``None`` for SAC).
@@ -276,6 +279,7 @@ class TD3Block:
         lr_decay: ActorLRDecay | None = None,
         drift: ActorDrift | None = None,
         saturation=None,
+        update_targets,
         gradient_steps: int = 0,
     ) -> None:
         self.batches, self.update, self.cadence, self.alpha_scheduler = batches, update, cadence, alpha_scheduler
@@ -283,7 +287,7 @@ class TD3Block:
         self.reward_tag = reward_tag
         self.precision = precision if precision is not None else contextlib.nullcontext()
         self.lr_decay, self.drift, self.saturation = lr_decay, drift, saturation
-        self.gradient_steps = gradient_steps
+        self.gradient_steps, self.update_targets = gradient_steps, update_targets
         self.prioritized = isinstance(batches, PrioritizedMixedReplayBuffer)
 
     def __call__(self, before: int, frames: int, data) -> dict:
@@ -306,11 +310,12 @@ class TD3Block:
             if drawn is not None:
                 drawn.append(batch.select(("next", "reward"), "is_teacher", "priority_weight"))
             self.gradient_steps += 1
-            update_actor = (
-                self.gradient_steps % self.policy_delay == 0 and self.gradient_steps >= self.actor_updates_after
-            )
+            delayed_step = self.gradient_steps % self.policy_delay == 0
+            update_actor = delayed_step and self.gradient_steps >= self.actor_updates_after
             with timeit("update"):
                 last.update(self.update(batch, update_actor=update_actor))
+                if delayed_step and not update_actor:
+                    self.update_targets()
         if drawn is not None:  # and the teacher share the priorities gave
             drawn = torch.stack(drawn)
             metrics[self.reward_tag] = drawn["next", "reward"].mean()
@@ -332,8 +337,11 @@ class TD3Block:
             yield batch
 
 
-def make_td3_block(cfg: DictConfig, batches, update, actor, loss, alpha_scheduler, optimizers, *, gradient_steps):
-    """The TD3 (or SAC) block of ``cfg``: its cadence, precision, actor lr decay and diagnostics."""
+def make_td3_block(
+    cfg: DictConfig, batches, update, actor, loss, alpha_scheduler, optimizers, *, gradient_steps, target_updater
+):
+    """The TD3 (or SAC) block of ``cfg``: its cadence, precision, actor lr decay and diagnostics
+    (``target_updater``: the targets' Polyak step before the actor starts)."""
     o, td3 = cfg.optim, cfg.algo.learner == "td3"
     decay = o.actor_lr_decay
     return TD3Block(
@@ -352,6 +360,7 @@ def make_td3_block(cfg: DictConfig, batches, update, actor, loss, alpha_schedule
         drift=ActorDrift(actor, loss) if td3 else None,
         saturation=(lambda batch: actor_saturation(cfg, actor, batch)) if td3 else None,
         gradient_steps=gradient_steps,
+        update_targets=target_updater.step,
     )
 
 

@@ -165,7 +165,15 @@ def main(cfg):  # noqa: F821
     )
     update = make_prioritized_update(cfg, make_update(cfg, loss, optimizers, target_updater), sail_batches, loss)
     td3_block = make_td3_block(
-        cfg, sail_batches, update, actor, loss, alpha_scheduler, optimizers, gradient_steps=run["gradient_steps"]
+        cfg,
+        sail_batches,
+        update,
+        actor,
+        loss,
+        alpha_scheduler,
+        optimizers,
+        gradient_steps=run["gradient_steps"],
+        target_updater=target_updater,
     )
     d_batches = MixedReplayBuffer(teacher, recent)
     learning_blocks = make_learning_blocks(cfg, td3_block, d_batches, d_loss, optimizers, rnd, rnd_loss)

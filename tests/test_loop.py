@@ -207,7 +207,7 @@ class Batches:
 
 
 def td3_block(**kwargs):
-    steps = []
+    steps = []  # per gradient step: whether it moved the actor, "targets" after a target-only update
 
     def update(batch, update_actor):
         steps.append(update_actor)
@@ -221,6 +221,7 @@ def td3_block(**kwargs):
         policy_delay=2,
         actor_updates_after=0,
         reward_tag="sail/d_reward_mean",
+        update_targets=lambda: steps.append("targets"),
     )
     options.update(kwargs)
     batches = Batches()
@@ -241,7 +242,14 @@ def test_td3_block_runs_at_its_cadence_after_warmup():
 def test_td3_block_continues_a_resumed_count_and_delays_the_actor():
     block, _, steps = td3_block(gradient_steps=5, actor_updates_after=8, policy_delay=1, alpha=0.0)
     block(2500, 3000, None)
-    assert steps == [False, False, True] and block.gradient_steps == 8  # steps 6, 7, 8
+    # steps 6, 7, 8: before the actor starts, the targets still move at every policy_delay-th step
+    assert steps == [False, "targets", False, "targets", True] and block.gradient_steps == 8
+
+
+def test_td3_block_moves_the_targets_every_policy_delay_steps_before_the_actor_starts():
+    block, _, steps = td3_block(actor_updates_after=4, policy_delay=2, alpha=0.0)
+    block(1500, 3000, None)  # steps 1-6; the actor from step 4 on, at steps 4 and 6
+    assert steps == [False, False, "targets", False, True, False, True]
 
 
 def test_td3_block_decays_the_lr_and_measures_saturation_on_agent_rows_only():
@@ -279,6 +287,7 @@ def test_td3_block_draws_each_prioritized_batch_after_the_step_before_set_its_pr
         policy_delay=2,
         actor_updates_after=0,
         reward_tag="sail/d_reward_mean",
+        update_targets=lambda: None,
     )
     torch.manual_seed(0)
     metrics = block(2500, 3000, None)  # 3 steps of 64 rows

@@ -128,7 +128,8 @@ def test_pofd_lambda_and_lr_schedules():
     r = cfg.algo.reward
     # the one public reimplementation's constant lambda_1 (no schedule found for the paper)
     assert (r.source, r.kind, r.coef, r.coef_decay, cfg.algo.learner) == ("shaped", "gail", 0.1, 1.0, "ppo")
-    assert pofd_lambda(r.coef, r.coef_decay, 1_000_000 // 2048 - 1) == 0.1  # the last batch of 1M frames
+    # the last of 1M frames' 489 batches of 2048 (the Collector rounds the budget up): still 0.1
+    assert pofd_lambda(r.coef, r.coef_decay, 488) == 0.1 and -(-1_000_000 // 2048) == 489
     # TorchRL's PPO lr: 1 - done / all updates, floored at 0
     # a 300k budget is 147 batches of 2048 (TorchRL's Collector rounds 146.48 up), 32 minibatches of 64
     assert ppo_updates(300_000, 2048, 10, 64) == 147 * 10 * 32 and ppo_updates(2048, 512, 10, 64) == 320
