@@ -53,7 +53,8 @@ EvaluatedActor = Choice("EvaluatedActor", {name: name for name in ("online", "ta
 EvaluatedPolicy = Choice("EvaluatedPolicy", {name: name for name in ("last", "best", "best_evaluated")})
 LossFunction = Choice("LossFunction", {name: name for name in ("l1", "l2", "smooth_l1")})
 Activation = Choice("Activation", {name: name for name in ("relu", "tanh", "elu")})
-DiscriminatorInit = Choice("DiscriminatorInit", {name: name for name in ("xavier", "orthogonal", "torch")})
+# a linear layer's init: torchrl_sail.modules.init.LINEAR_INITS (tests/test_config.py keeps the two alike)
+LayerInit = Choice("LayerInit", {name: name for name in ("xavier", "orthogonal", "torch")})
 Cadence = Choice("Cadence", {name: name for name in ("frames", "episodes")})
 BlockOrder = Choice("BlockOrder", {name: name for name in ("td3_first", "discriminator_first")})
 # what a mean loss divides the importance-weighted sum by: the rows (PER's) or the weights' sum (TorchRL's)
@@ -299,8 +300,9 @@ class OptimConfig:
     # parameters (fast path) | loss = SAILLoss.value_loss/actor_loss + SoftUpdate (reference);
     # both compute the same step (tested equal to float rounding).
     implementation: Implementation = Implementation.fused
-    # fp32 | bf16: autocast the TD3 network evaluations to bfloat16 (opt-in; fast on CPUs with
-    # AMX and on CUDA). Parameters, optimizer states and losses stay float32.
+    # fp32 | bf16: autocast the TD3 network evaluations, and D's reward of the TD3 batches, to
+    # bfloat16 (opt-in; fast on CPUs with AMX and on CUDA). Parameters, optimizer states and losses
+    # stay float32.
     precision: Precision = Precision.fp32
     # Replay the fused TD3 step as CUDA graphs (device=cuda; TensorDict's CudaGraphModule, as
     # TorchRL's sota scripts): the step's kernels launched as one graph, the Adam steps capturable.
@@ -324,13 +326,17 @@ class NetworkConfig:
     # algo.l2_coef (DDPGfD's weight decay) the decay reaches the norms' gains and biases too
     critic_layer_norm: bool = False
     activation: Activation = Activation.relu
+    # The actor's and critic's linear weights: torch (nn.Linear's own: Kaiming-uniform weights, uniform
+    # biases; every committed run used it) | xavier (Glorot-uniform weights, zero biases: the SAIL
+    # authors') | orthogonal (gain 1, zero biases)
+    actor_critic_init: LayerInit = LayerInit.torch
     discriminator_cells: list[int] = field(default_factory=lambda: [256, 256])
     discriminator_activation: Activation = Activation.tanh
     normalize_observations: bool = True  # D's running observation normalisation
     discriminator_spectral_norm: bool = False  # spectral normalisation of D's layers (not the authors')
     # D's linear weights: xavier (Glorot-uniform, the SAIL authors') | orthogonal (Kostrikov et al.'s DAC release)
     # | torch (nn.Linear's own, TorchRL's GAIL example)
-    discriminator_init: DiscriminatorInit = DiscriminatorInit.xavier
+    discriminator_init: LayerInit = LayerInit.xavier
 
 
 @dataclass

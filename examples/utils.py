@@ -59,6 +59,7 @@ from torchrl_sail import (
 from torchrl_sail.data import keep_columns, parse_columns, unreproduced_columns
 from torchrl_sail.data.columns import column_ranges
 from torchrl_sail.data.paper_teachers import teacher_env
+from torchrl_sail.modules.init import reset_linears
 
 # Teachers made by examples/make_teacher.py, one small dataset per env, shipped with the repo.
 TEACHERS_DIR = Path(__file__).resolve().parent / "teachers"
@@ -315,7 +316,16 @@ class FilledRows:
 # ----------------------------------------------------------------------------- off-policy agent (TD3, SAC)
 def make_agent(cfg: DictConfig, env):
     """Actor, critic and exploration policy: TD3's deterministic actor with Gaussian noise, or
-    (``algo.learner=sac``) SAC's tanh-Gaussian actor, which explores by sampling."""
+    (``algo.learner=sac``) SAC's tanh-Gaussian actor, which explores by sampling; their linear
+    layers initialised by ``network.actor_critic_init``."""
+    actor, critic, policy = _make_agent(cfg, env)
+    if cfg.network.actor_critic_init != "torch":  # "torch" keeps the layers (and the RNG stream) as built
+        reset_linears(actor, cfg.network.actor_critic_init)
+        reset_linears(critic, cfg.network.actor_critic_init)
+    return actor, critic, policy
+
+
+def _make_agent(cfg: DictConfig, env):
     obs_dim = env.observation_spec["observation"].shape[-1]
     action_spec = env.action_spec
     act_dim = action_spec.shape[-1]

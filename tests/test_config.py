@@ -850,3 +850,63 @@ def test_dac_published_trains_after_each_episode_d_first_and_gail_has_torchrls_d
         assert (cfg.network.discriminator_init, cfg.network.normalize_observations) == ("torch", False)
         assert (d.lr, d.steps, d.batch_size, d.gp_coef, d.entropy_coef) == (3e-4, 1, 256, 0.0, 0.0)
     assert make("algo=pofd").algo.reward.source == "shaped" and make("algo=pofd").algo.name == "pofd"
+
+
+def test_actor_critic_init_is_the_layers_own_by_default_and_the_authors_glorot_on_request():
+    """network.actor_critic_init: "torch" (the default) leaves the layers as nn.Linear made them, the
+    same weights from the same seed; "xavier" gives Glorot-uniform weights within sqrt(6 / (fan_in +
+    fan_out)) and zero biases in every linear layer of the actor and the critic, the exploration
+    policy's included (it holds the actor's modules); "orthogonal" orthonormal rows or columns."""
+    import torch
+    from config_schema import LayerInit
+    from torch import nn
+    from utils import _make_agent, make_agent
+
+    from torchrl_sail import make_sail_env
+    from torchrl_sail.modules.init import LINEAR_INITS
+
+    assert {choice.value for choice in LayerInit} == set(LINEAR_INITS)
+    env = make_sail_env("Pendulum-v1", max_episode_steps=20)  # observation 3 + time feature, action 1
+
+    def linears(*modules):
+        return [layer for module in modules for layer in module.modules() if isinstance(layer, nn.Linear)]
+
+    torch.manual_seed(0)
+    actor, critic, _ = make_agent(make(), env)
+    torch.manual_seed(0)
+    built, _, _ = _make_agent(make(), env)  # the networks as built, before any init
+    assert make().network.actor_critic_init == "torch"
+    assert all(torch.equal(a.weight, b.weight) for a, b in zip(linears(actor), linears(built), strict=True))
+    assert all(layer.bias.abs().sum() > 0 for layer in linears(actor, critic))
+
+    actor, critic, policy = make_agent(make("network.actor_critic_init=xavier"), env)
+    layers = linears(actor, critic)
+    assert [tuple(layer.weight.shape) for layer in layers] == [
+        (400, 4),
+        (300, 400),
+        (1, 300),
+        (400, 5),
+        (300, 400),
+        (1, 300),
+    ]
+    for layer in layers:
+        fan_out, fan_in = layer.weight.shape
+        assert layer.weight.abs().max() <= math.sqrt(6 / (fan_in + fan_out)) and not layer.bias.any()
+    # a uniform law on +-b has std b / sqrt(3): sqrt(2 / (fan_in + fan_out)) = 0.0544 for 400 x 300
+    assert layers[1].weight.std().item() == pytest.approx(math.sqrt(2 / 700), rel=0.02)
+    assert linears(policy)[0] is layers[0]
+
+    actor, critic, _ = make_agent(make("network.actor_critic_init=orthogonal"), env)
+    first = linears(actor)[0].weight  # 400 x 4: orthonormal columns
+    torch.testing.assert_close(first.T @ first, torch.eye(4), atol=1e-5, rtol=0)
+    with pytest.raises(ConfigCompositionException):
+        make("network.actor_critic_init=kaiming")
+
+
+def test_reset_linears_refuses_an_unknown_init_by_name():
+    from torch import nn
+
+    from torchrl_sail.modules.init import reset_linears
+
+    with pytest.raises(ValueError, match="init='kaiming': must be one of"):
+        reset_linears(nn.Linear(2, 2), "kaiming")

@@ -34,6 +34,8 @@ from tensordict.utils import NestedKey
 from torch import nn
 from torchrl.modules import MLP
 
+from torchrl_sail.modules.init import check_linear_init, reset_linears
+
 __all__ = ["Discriminator", "DiscriminatorNet", "RunningObsNorm"]
 
 
@@ -145,11 +147,6 @@ class RunningObsNorm(nn.Module):
         return f"shape={tuple(self.shape)}, min_var={self.min_var}"
 
 
-# the linear layers' weight init by name: the SAIL authors' (tf's fully_connected default), DAC's release, and
-# PyTorch's own nn.Linear init (Kaiming-uniform weights and uniform biases: TorchRL's GAIL example)
-_INITS = {"xavier": nn.init.xavier_uniform_, "orthogonal": nn.init.orthogonal_, "torch": None}
-
-
 class DiscriminatorNet(nn.Module):
     """State-action discriminator ``D(s, a)`` returning a logit (authors' architecture).
 
@@ -220,8 +217,7 @@ class DiscriminatorNet(nn.Module):
         init: str = "xavier",
     ) -> None:
         super().__init__()
-        if init not in _INITS:
-            raise ValueError(f"init={init!r}: must be one of {sorted(_INITS)}")
+        check_linear_init(init)
         self.init = init
         self.observation_dim = observation_dim
         self.action_dim = action_dim
@@ -252,12 +248,7 @@ class DiscriminatorNet(nn.Module):
             for layer in self._linears():
                 if hasattr(layer, "parametrizations"):
                     nn.utils.parametrize.remove_parametrizations(layer, "weight", leave_parametrized=False)
-                if self.init == "torch":
-                    layer.reset_parameters()
-                else:
-                    _INITS[self.init](layer.weight)
-                    if layer.bias is not None:
-                        nn.init.zeros_(layer.bias)
+                reset_linears(layer, self.init)
                 if self.spectral_norm:
                     nn.utils.parametrizations.spectral_norm(layer)
         self.train(self.training)  # the new normalisations do not iterate in a forward
