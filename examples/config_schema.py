@@ -328,7 +328,7 @@ class NetworkConfig:
     activation: Activation = Activation.relu
     # The actor's and critic's linear weights: torch (nn.Linear's own: Kaiming-uniform weights, uniform
     # biases; every committed run used it) | xavier (Glorot-uniform weights, zero biases: the SAIL
-    # authors') | orthogonal (gain 1, zero biases)
+    # authors') | orthogonal (gain 1, the actor's output layer 0.01, zero biases: Kostrikov et al.'s DAC release)
     actor_critic_init: LayerInit = LayerInit.torch
     discriminator_cells: list[int] = field(default_factory=lambda: [256, 256])
     discriminator_activation: Activation = Activation.tanh

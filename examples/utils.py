@@ -319,9 +319,14 @@ def make_agent(cfg: DictConfig, env):
     (``algo.learner=sac``) SAC's tanh-Gaussian actor, which explores by sampling; their linear
     layers initialised by ``network.actor_critic_init``."""
     actor, critic, policy = _make_agent(cfg, env)
-    if cfg.network.actor_critic_init != "torch":  # "torch" keeps the layers (and the RNG stream) as built
-        reset_linears(actor, cfg.network.actor_critic_init)
-        reset_linears(critic, cfg.network.actor_critic_init)
+    init = cfg.network.actor_critic_init
+    if init != "torch":  # "torch" keeps the layers (and the RNG stream) as built
+        reset_linears(actor, init)
+        reset_linears(critic, init)
+        if init == "orthogonal":  # Kostrikov et al.'s release: the actor's output layer at gain 0.01
+            output = [layer for layer in actor.modules() if isinstance(layer, nn.Linear)][-1]
+            with torch.no_grad():
+                nn.init.orthogonal_(output.weight, gain=0.01)
     return actor, critic, policy
 
 

@@ -838,6 +838,10 @@ def test_dac_published_trains_after_each_episode_d_first_and_gail_has_torchrls_d
     assert dac.optim.discriminator.steps / dac.optim.discriminator.every_frames == 1.0
     cheetah = make("algo=dac_published", "env=HalfCheetah-v4")
     assert (cheetah.collector.init_random_frames, cheetah.optim.start_frames) == (10_000, 1000)  # learning from 1000
+    # the release's first actor step is critic step 1002 (its check reads the count before the step,
+    # >= 1000, on even counts); the release's orthogonal networks
+    assert dac.optim.actor_updates_after == 1001 and dac.optim.policy_delay == 2
+    assert (dac.network.actor_critic_init, dac.network.discriminator_init) == ("orthogonal", "orthogonal")
     check_config(dac)
     with pytest.raises(ValueError, match=r"config optim.cadence='episodes': .*collector.num_workers=1"):
         check_config(make("algo=dac_published", "collector.num_workers=2", "collector.frames_per_batch=50"))
@@ -856,7 +860,8 @@ def test_actor_critic_init_is_the_layers_own_by_default_and_the_authors_glorot_o
     """network.actor_critic_init: "torch" (the default) leaves the layers as nn.Linear made them, the
     same weights from the same seed; "xavier" gives Glorot-uniform weights within sqrt(6 / (fan_in +
     fan_out)) and zero biases in every linear layer of the actor and the critic, the exploration
-    policy's included (it holds the actor's modules); "orthogonal" orthonormal rows or columns."""
+    policy's included (it holds the actor's modules); "orthogonal" orthonormal rows or columns, the
+    actor's output layer scaled to 0.01 (Kostrikov et al.'s release)."""
     import torch
     from config_schema import LayerInit
     from torch import nn
@@ -897,8 +902,11 @@ def test_actor_critic_init_is_the_layers_own_by_default_and_the_authors_glorot_o
     assert linears(policy)[0] is layers[0]
 
     actor, critic, _ = make_agent(make("network.actor_critic_init=orthogonal"), env)
-    first = linears(actor)[0].weight  # 400 x 4: orthonormal columns
+    first, output = linears(actor)[0].weight, linears(actor)[-1].weight  # 400 x 4: orthonormal columns
     torch.testing.assert_close(first.T @ first, torch.eye(4), atol=1e-5, rtol=0)
+    # the release's actor output layer (1 x 300) at gain 0.01: a row of norm 0.01; the critic's at gain 1
+    assert output.norm().item() == pytest.approx(0.01, rel=1e-5)
+    assert linears(critic)[-1].weight.norm().item() == pytest.approx(1.0, rel=1e-5)
     with pytest.raises(ConfigCompositionException):
         make("network.actor_critic_init=kaiming")
 
