@@ -351,6 +351,10 @@ def _make_agent(cfg: DictConfig, env):
         ),
         in_keys=["action", "observation"],
     )
+    if masks_absorbing_actions(cfg):
+        # DAC's release: Q(s_a, 0) at the absorbing state, whatever action reaches it (TD3's target
+        # noise included: the release zeroes the noisy target action there)
+        critic = TensorDictSequential(AbsorbingStateTransform().action_mask(), critic)
     if cfg.algo.learner == "sac":
         # TorchRL's sota SAC actor: MLP -> (loc, softplus scale) -> TanhNormal on the action bounds
         net = nn.Sequential(

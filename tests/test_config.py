@@ -918,3 +918,47 @@ def test_reset_linears_refuses_an_unknown_init_by_name():
 
     with pytest.raises(ValueError, match="init='kaiming': must be one of"):
         reset_linears(nn.Linear(2, 2), "kaiming")
+
+
+def test_dac_published_critic_reads_the_zero_action_at_the_absorbing_state():
+    """Kostrikov et al.'s release zeroes the noisy target action at the absorbing state s_a: the
+    algo=dac_published critic reads action 0 wherever the observation is s_a (indicator 1), whatever
+    action it is given, and the given action elsewhere. So the TD target at s_a is Q'(s_a, 0) whatever
+    TD3's target noise draws, while at other next states the noise moves it."""
+    import torch
+    from tensordict import TensorDict
+    from utils import make_agent, make_discriminator, make_env, make_losses
+
+    cfg = make("algo=dac_published", "env=Hopper-v4")
+    env = make_env(cfg, 0)
+    n_obs, n_act = env.observation_spec["observation"].shape[-1], env.action_spec.shape[-1]
+    assert n_obs == 11 + 1 + 1  # Hopper's, the time feature, the absorbing indicator
+    actor, critic, _ = make_agent(cfg, env)
+    torch.manual_seed(0)
+    obs = torch.randn(4, n_obs)
+    obs[:2] = 0.0
+    obs[:2, -1] = 1.0  # rows 0-1: s_a
+    obs[2:, -1] = 0.0
+    action = torch.rand(4, n_act) * 2 - 1
+
+    def q(a):
+        return critic(TensorDict(observation=obs, action=a, batch_size=[4]))["state_action_value"]
+
+    given, zero = q(action), q(torch.zeros_like(action))
+    assert torch.equal(given[:2], zero[:2]) and not torch.equal(given[2:], zero[2:])
+
+    loss = make_losses(cfg, actor, critic, make_discriminator(cfg, env), env.action_spec)[0]
+    flags = torch.zeros(4, 1, dtype=torch.bool)
+    next_obs = obs.clone()
+    batch = TensorDict(
+        observation=torch.randn(4, n_obs).index_fill_(1, torch.tensor([n_obs - 1]), 0.0),
+        action=action,
+        next=TensorDict(observation=next_obs, reward=torch.ones(4, 1), done=flags, terminated=flags, truncated=flags),
+        batch_size=[4],
+    )
+    next_values = []
+    for seed in (1, 2):  # two draws of TD3's target noise
+        torch.manual_seed(seed)
+        next_values.append(loss.value_loss(batch)[1]["next_state_value"])
+    assert torch.equal(next_values[0][:2], next_values[1][:2])  # at s_a: Q'(s_a, 0) both times
+    assert not torch.equal(next_values[0][2:], next_values[1][2:])
