@@ -241,6 +241,9 @@ class CollectorConfig:
     # the paper's evaluation point (Figure 2, Table 1); the authors' code runs 3000000
     total_frames: int = 1_000_000
     init_random_frames: int = 10_000  # uniform random actions, then learning starts (authors: learning_starts)
+    # and uniform random episodes after them until the actor's first update (Kostrikov et al.'s release;
+    # algo=dac_published; one env stream, collector.num_workers=1)
+    random_until_actor: bool = False
     frames_per_batch: int = 500  # one collector batch = the discriminator cadence
     num_workers: int = 1  # collector processes / actors; > 1 alone selects backend=process
     # TorchRL's Collector backend: null picks `direct` (one process) for num_workers=1, else
@@ -965,6 +968,13 @@ def _check_optim(cfg: DictConfig) -> None:
                 str(o.cadence),
                 o.cadence == "frames" or cfg.collector.num_workers == 1,
                 "episodes counts the frames of one env stream's episodes: use collector.num_workers=1",
+            ),
+            (
+                "collector.random_until_actor",
+                cfg.collector.random_until_actor,
+                not cfg.collector.random_until_actor or (cfg.collector.num_workers == 1 and cfg.algo.learner == "td3"),
+                "the random episodes end with the TD3 actor's first update, which one collector in the "
+                "learner's process sees: use collector.num_workers=1 and a TD3 learner",
             ),
         ]
     )

@@ -28,6 +28,7 @@ from run_utils import (
     record_evaluation,
     weights_in,
 )
+from tensordict.nn import TensorDictModuleBase
 from torchrl import timeit
 from utils import (
     ActorDrift,
@@ -236,6 +237,36 @@ def make_prioritized_update(cfg: DictConfig, update, batches, loss):
     return update if per is None else PrioritizedUpdate(update, batches, loss, action_grad_coef=per.action_grad_coef)
 
 
+class RandomEpisodesUntil(TensorDictModuleBase):
+    """Kostrikov et al.'s release: uniform random actions, whole episodes at a time, until the first
+    episode that starts once ``started()`` holds (their actor's first update); ``policy`` from then on.
+
+    An episode starts where the env's ``init_key`` is set (TorchRL's ``InitTracker``). A resumed run
+    starts on a fresh episode, so it acts with ``policy`` from its first step if ``started()`` holds.
+
+    Args:
+        policy: the exploration policy (a TensorDict module writing ``action_key``).
+        action_spec: the env's action spec; its ``rand`` draws the random actions.
+        started: ``started() -> bool``, e.g. :attr:`TD3Block.actor_started`.
+        action_key, init_key: the action and the episode-start flag.
+    """
+
+    def __init__(self, policy, action_spec, started, *, action_key="action", init_key="is_init") -> None:
+        super().__init__()
+        self.policy, self.action_spec, self.started = policy, action_spec, started
+        self.action_key, self.init_key = action_key, init_key
+        self.in_keys = [*policy.in_keys, init_key]
+        self.out_keys = list(policy.out_keys)
+        self.random = True
+
+    def forward(self, tensordict):
+        if self.random and self.started() and bool(tensordict[self.init_key].all()):
+            self.random = False
+        if self.random:
+            return tensordict.set(self.action_key, self.action_spec.rand(tensordict.batch_size))
+        return self.policy(tensordict)
+
+
 class TD3Block:
     """Algorithm 1's policy update: as many gradient steps as ``cadence`` gives the batch, on batches
     of ``batch_size`` rows, ``round(alpha * batch_size)`` of them the teacher's (alpha as
@@ -328,6 +359,13 @@ class TD3Block:
         if alpha < 1 and self.saturation is not None:  # the batch holds agent rows
             metrics.update(self.saturation(batch))
         return metrics
+
+    @property
+    def actor_started(self) -> bool:
+        """Whether a step has updated the actor: the first is the first multiple of ``policy_delay``
+        from ``actor_updates_after`` (and from step 1) on."""
+        first = -(-max(self.actor_updates_after, 1) // self.policy_delay) * self.policy_delay
+        return self.gradient_steps >= first
 
     def _prioritized(self, num_updates: int):
         """One batch per step: each step's new priorities change the next step's draw."""

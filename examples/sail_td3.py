@@ -31,6 +31,7 @@ import hydra
 import tqdm
 from config_schema import register_config_schema
 from loop import (
+    RandomEpisodesUntil,
     TeacherUpdate,
     finished_episodes,
     make_eval_envs,
@@ -179,6 +180,8 @@ def main(cfg):  # noqa: F821
     learning_blocks = make_learning_blocks(cfg, td3_block, d_batches, d_loss, optimizers, rnd, rnd_loss)
 
     frames = run["frames"]
+    if cfg.collector.random_until_actor:
+        exploration_policy = RandomEpisodesUntil(exploration_policy, env.action_spec, lambda: td3_block.actor_started)
     collector = make_collector(cfg, env, exploration_policy, frames=frames)
     pbar = tqdm.tqdm(total=cfg.collector.total_frames, initial=frames, unit="frames")
     clock = RunClock(run, frames, warmup=cfg.collector.init_random_frames)

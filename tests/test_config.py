@@ -841,6 +841,10 @@ def test_dac_published_trains_after_each_episode_d_first_and_gail_has_torchrls_d
     # the release's first actor step is critic step 1002 (its check reads the count before the step,
     # >= 1000, on even counts); the release's orthogonal networks
     assert dac.optim.actor_updates_after == 1001 and dac.optim.policy_delay == 2
+    assert dac.collector.random_until_actor and not make().collector.random_until_actor  # sample_random
+    for overrides in (("collector.num_workers=2",), ("algo=sail_sac",)):
+        with pytest.raises(ValueError, match=r"config collector.random_until_actor=True: the random episodes end"):
+            check_config(make("collector.random_until_actor=true", *overrides))
     assert (dac.network.actor_critic_init, dac.network.discriminator_init) == ("orthogonal", "orthogonal")
     check_config(dac)
     with pytest.raises(ValueError, match=r"config optim.cadence='episodes': .*collector.num_workers=1"):

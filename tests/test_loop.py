@@ -252,6 +252,39 @@ def test_td3_block_moves_the_targets_every_policy_delay_steps_before_the_actor_s
     assert steps == [False, False, "targets", False, True, False, True]
 
 
+def test_td3_block_says_when_its_first_actor_step_is_done():
+    for after, delay, first in ((0, 2, 2), (1001, 2, 1002), (1000, 2, 1000), (8, 1, 8)):
+        block, _, _ = td3_block(actor_updates_after=after, policy_delay=delay, gradient_steps=first - 1)
+        assert not block.actor_started
+        block.gradient_steps = first
+        assert block.actor_started, (after, delay)
+
+
+def test_random_episodes_until_the_first_episode_that_starts_after_the_actor_did():
+    """Kostrikov et al.'s sample_random: whole episodes of uniform random actions until one starts
+    after the actor's first update; from then on the policy, whatever started() says later."""
+    spec = Bounded(-1.0, 1.0, (2,))
+    policy = TensorDictModule(lambda obs: torch.full((2,), 0.5), in_keys=["observation"], out_keys=["action"])
+    started = [False]
+    wrapper = loop.RandomEpisodesUntil(policy, spec, lambda: started[0])
+    assert wrapper.in_keys == ["observation", "is_init"] and wrapper.out_keys == ["action"]
+
+    def act(is_init: bool) -> torch.Tensor:
+        td = TensorDict(observation=torch.zeros(3), is_init=torch.tensor([is_init]), batch_size=[])
+        return wrapper(td)["action"]
+
+    torch.manual_seed(0)
+    random = [act(True), act(False)]
+    started[0] = True
+    random.append(act(False))  # the actor started mid-episode: that episode stays random
+    for action in random:
+        assert action.shape == (2,) and action.abs().max() <= 1 and not torch.equal(action, torch.full((2,), 0.5))
+    assert len({tuple(action.tolist()) for action in random}) == 3  # a fresh draw per step
+    assert torch.equal(act(True), torch.full((2,), 0.5))  # the next episode: the policy
+    started[0] = False
+    assert torch.equal(act(True), torch.full((2,), 0.5)) and not wrapper.random
+
+
 def test_td3_block_decays_the_lr_and_measures_saturation_on_agent_rows_only():
     seen = []
     block, _, _ = td3_block(
