@@ -348,6 +348,38 @@ def test_prioritized_update_adds_the_first_critics_action_gradient():
     assert "td_error" not in batch.keys() and not batch["action"].requires_grad  # the batch is left as it was
 
 
+def test_prioritized_update_sets_each_rows_td_error_plus_lambda3_times_the_action_gradient_before_the_step():
+    """DDPGfD's priority delta^2 + lambda_3 |grad_a Q_1(s, a)|^2 (the buffer adds eps, eps_D): the step's
+    own delta^2, and the gradient of the critic as it was before the step moved it."""
+    spec = Bounded(-1.0, 1.0, (2,))
+    actor = TensorDictSequential(
+        TensorDictModule(MLP(in_features=3, out_features=2, num_cells=[8]), ["observation"], ["param"]),
+        TanhModule(["param"], ["action"], spec=spec),
+    )
+    critic = ValueOperator(MLP(in_features=5, out_features=1, num_cells=[]), in_keys=["action", "observation"])
+    loss = SAILLoss(actor, critic, action_spec=spec)
+    weight = loss.qvalue_network_params[0]["module", "0", "weight"]
+    before = weight[0, :2].pow(2).sum().item()  # |grad_a Q_1|^2 of the linear critic, on every row
+
+    def update(batch, update_actor):  # the TD3 step: writes delta^2 and moves the critic
+        batch["td_error"] = torch.arange(4, dtype=torch.float32)
+        with torch.no_grad():
+            weight.mul_(3.0)
+        return {"loss_qvalue": torch.tensor(1.0)}
+
+    seen = []
+    buffer = SimpleNamespace(index_key="index", update_priority=lambda index, priority: seen.append((index, priority)))
+    prioritized = loop.PrioritizedUpdate(update, buffer, loss, action_grad_coef=0.5)
+    assert loss.tensor_keys.priority == "td_error"
+    batch = TensorDict(
+        {"observation": torch.randn(4, 3), "action": spec.rand((4,)), "index": torch.arange(10, 14)}, [4]
+    )
+    assert prioritized(batch, update_actor=False) == {"loss_qvalue": torch.tensor(1.0)}
+    ((index, priority),) = seen
+    assert index.tolist() == [10, 11, 12, 13]
+    torch.testing.assert_close(priority, torch.tensor([0.0, 1.0, 2.0, 3.0]) + 0.5 * before)
+
+
 class DLoss:
     """Stands in for DiscriminatorLoss: a loss on one parameter, accuracy 0.6 on each side."""
 
