@@ -43,6 +43,32 @@ EXTRA = {
 }
 
 
+def test_dac_published_runs_the_releases_loop(tmp_path, teacher_dir):
+    """Kostrikov et al.'s loop end to end (its own cadence, D first, learning from 1000 frames, random
+    episodes until the actor starts), small networks: after each episode as many D steps as TD3 steps,
+    each count one per frame of the episodes that ended from 1000 frames on; the actor at every 2nd
+    step from the first even step past optim.actor_updates_after."""
+    run_dir = tmp_path / "dac_published"
+    small = [f"network.{net}_cells=[64,64]" for net in ("actor", "critic", "discriminator")]
+    overrides = [f"teacher.path={teacher_dir / HOPPER}", "optim.actor_updates_after=101", *small]
+    # TINY's block sizes would change the method's one D step and one TD3 step per frame, and its
+    # batches its 50-frame collection: not used here
+    mine = ("optim.updates_per_train", "optim.discriminator.steps", "collector.frames_per_batch")
+    loop_settings = [o for o in TINY if not o.startswith(mine)]
+    common = ["env=Hopper-v4", "collector.total_frames=1600", "logger.backends=[csv]", "checkpoint.every_frames=1000"]
+    run(run_dir, "algo=dac_published", *common, *loop_settings, *overrides)
+    summary = outputs_written(run_dir, "dac_published", 1600)
+    steps = summary["gradient_steps"]
+    # the frames of the episodes that ended from 1000 frames on (the first of them began before 1000:
+    # random Hopper episodes last tens of frames), the last episode unfinished
+    assert 0 < steps <= 1600 - 1000 + 200
+    optimizer_steps = {
+        name: int(saved(run_dir, f"optim_{name}")[f"optim_{name}"]["state"][0]["step"])
+        for name in ("critic", "discriminator", "actor")
+    }
+    assert optimizer_steps == {"critic": steps, "discriminator": steps, "actor": steps // 2 - 50}  # 102, 104, ...
+
+
 @pytest.mark.parametrize("algo", ["dac", "dac_published", "ddpgfd", "pofd_td3", "td3_delayed", "sail_rnd", "sail_sac"])
 def test_td3_baselines_run(tmp_path, teacher_dir, algo):
     run_dir = tmp_path / algo
