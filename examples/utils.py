@@ -326,7 +326,7 @@ def make_agent(cfg: DictConfig, env):
         if init == "orthogonal":  # Kostrikov et al.'s release: the actor's output layer at gain 0.01
             output = [layer for layer in actor.modules() if isinstance(layer, nn.Linear)][-1]
             with torch.no_grad():
-                nn.init.orthogonal_(output.weight, gain=0.01)
+                output.weight.mul_(0.01)  # orthogonal at gain g is g times the gain-1 draw
     return actor, critic, policy
 
 

@@ -331,15 +331,20 @@ def test_td3_block_draws_each_prioritized_batch_after_the_step_before_set_its_pr
     assert torch.allclose(batches.probabilities(), torch.tensor([0.5, 0.5, 0.0, 0.0], dtype=torch.float64))
 
 
-def test_prioritized_update_adds_the_first_critics_action_gradient():
-    # a linear critic Q_i(s, a) = W_i [a, s] + b_i: grad_a Q_1 = W_1[:, :ACT] on every row
+def linear_critic_loss():
+    """A TD3 loss on 3-dim observations and 2-dim actions whose critics are linear,
+    Q_i(s, a) = W_i [a, s] + b_i: grad_a Q_1 = W_1[:, :2] on every row."""
     spec = Bounded(-1.0, 1.0, (2,))
     actor = TensorDictSequential(
         TensorDictModule(MLP(in_features=3, out_features=2, num_cells=[8]), ["observation"], ["param"]),
         TanhModule(["param"], ["action"], spec=spec),
     )
     critic = ValueOperator(MLP(in_features=5, out_features=1, num_cells=[]), in_keys=["action", "observation"])
-    loss = SAILLoss(actor, critic, action_spec=spec)
+    return spec, SAILLoss(actor, critic, action_spec=spec)
+
+
+def test_prioritized_update_adds_the_first_critics_action_gradient():
+    spec, loss = linear_critic_loss()
     batch = TensorDict({"observation": torch.randn(6, 3), "action": spec.rand((6,))}, [6])
     weight = loss.qvalue_network_params[0]["module", "0", "weight"]
     expected = weight[0, :2].pow(2).sum().detach().expand(6)
@@ -351,13 +356,7 @@ def test_prioritized_update_adds_the_first_critics_action_gradient():
 def test_prioritized_update_sets_each_rows_td_error_plus_lambda3_times_the_action_gradient_before_the_step():
     """DDPGfD's priority delta^2 + lambda_3 |grad_a Q_1(s, a)|^2 (the buffer adds eps, eps_D): the step's
     own delta^2, and the gradient of the critic as it was before the step moved it."""
-    spec = Bounded(-1.0, 1.0, (2,))
-    actor = TensorDictSequential(
-        TensorDictModule(MLP(in_features=3, out_features=2, num_cells=[8]), ["observation"], ["param"]),
-        TanhModule(["param"], ["action"], spec=spec),
-    )
-    critic = ValueOperator(MLP(in_features=5, out_features=1, num_cells=[]), in_keys=["action", "observation"])
-    loss = SAILLoss(actor, critic, action_spec=spec)
+    spec, loss = linear_critic_loss()
     weight = loss.qvalue_network_params[0]["module", "0", "weight"]
     before = weight[0, :2].pow(2).sum().item()  # |grad_a Q_1|^2 of the linear critic, on every row
 
