@@ -58,9 +58,13 @@ Generated blocks. ``--write-into FILE:BLOCK`` also writes the block ``BLOCK`` (a
 :data:`BLOCKS`), made from these runs, into the Markdown file ``FILE``, between the lines
 ``<!-- aggregate:BLOCK START -->`` and ``<!-- aggregate:BLOCK END -->``: e.g. ``campaign-readme``, the
 README's results section for the runs of one teacher (``--teacher``, default ``paper``) in the
-paper's Table 1 format (methods by env, the headline mean ± std over seeds, the teacher's return and
-the paper's SAIL beside them), with ``results_<teacher>.png`` (one panel per env), the budget, the
-CPUs, the wall time and the command of every cell; ``paper-comparison``, the paper's comparison in its
+paper's Table 1 format (methods by env, the headline mean ± std over seeds, under SAIL and DAC their
+best policy and fall share, the teacher's return and the paper's SAIL beside them), with
+``results_<teacher>.png`` (one panel per env), the budget, the CPUs, the wall time and the command of
+every cell (with the settings its runs had that differ from what the method composes now);
+``--default-label`` names the teacher label of the default SAIL's runs where it is another (the
+campaign's ``TABLE1_LABEL``, which ``--update-docs`` reads): their rows are ``sail``'s, and the
+teacher's own SAIL rows the replaced default's; ``paper-comparison``, the paper's comparison in its
 layout (Table 1's SAIL and exploration variants beside the paper's figures, Figure 2's baselines,
 Figures 3-4's variants of SAIL, with ``paper_figure2_<teacher>.png`` and ``paper_figures34_<teacher>.png``
 of their curves), each cell the last-5 and the best-policy means. ``--update-docs`` writes every block of
@@ -86,6 +90,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import csv
+import dataclasses
 import functools
 import importlib
 import io
@@ -118,6 +123,7 @@ REPO = BENCHMARKS.parent
 # Display order; methods not listed here come after, alphabetically.
 METHOD_ORDER = (
     "sail",
+    "sail, replaced default",
     "sail_no_lfd",
     "sail_no_adapt",
     "sail_onpolicy",
@@ -659,6 +665,28 @@ def method_name(label: str) -> str:
     return label.partition(" (")[0]
 
 
+REPLACED = "sail, replaced default"  # the row name of the SAIL defaults that a confirmed default replaced
+
+
+def default_view(groups: dict, teacher: str, default_label: str | None) -> dict:
+    """``groups`` as the README and the paper's comparison show ``teacher``'s runs: where the default
+    SAIL's runs with that teacher have a label of their own (``default_label``: the campaign's
+    ``TABLE1_LABEL``, ``paper-trusted`` once the trusted default replaced the defaults), its ``sail``
+    groups stand as ``teacher``'s, and ``teacher``'s own ``sail`` groups become the rows of the
+    replaced default (:data:`REPLACED`). Every ``sail`` row then names its budget, ``sail (300k)``."""
+    if default_label is None or default_label == teacher:
+        return groups
+    view = {}
+    for (env, label, method), group in groups.items():
+        if method_name(method) != "sail" or label not in (teacher, default_label):
+            view[env, label, method] = group
+            continue
+        name = "sail" if label == default_label else REPLACED
+        shown = f"{name} ({frames_label(total_frames(group.runs[0]))})"
+        view[env, teacher, shown] = dataclasses.replace(group, teacher=teacher, method=shown)
+    return view
+
+
 def variant_rows(groups: dict) -> list[dict]:
     """The groups whose teacher label is ``<base>-<variant>`` (a campaign stage's change of one setting:
     ``paper-fifo``, ``random-preact``) where ``<base>`` is another teacher label, each with the group of
@@ -1143,11 +1171,72 @@ def script_of(method: str) -> Path:
     return sibling("run_matrix").script_for(method)  # puts examples/ on sys.path
 
 
+# A learner's own section of ``algo``: compared only in the runs of that learner (``algo.sac`` of a TD3
+# run is never read)
+LEARNER_SECTIONS = ("sac", "ppo", "bc")
+# Keys a command always shows (cell_command), or never (per-run and operational: what a run learns and
+# how it is evaluated do not depend on them)
+COMMAND_KEYS = ("collector.total_frames", "eval.episodes", "eval.every_frames", *PER_RUN_KEYS, "checkpoint.")
+
+
+@functools.cache
+def defaults_of(method: str, env: str) -> dict | None:
+    """The flattened config ``algo=<method> env=<env>`` composes now (interpolations resolved, enums
+    as their names); None where ``conf/`` has no such method or env."""
+    script_of(method)  # puts examples/ on sys.path
+    from config_schema import register_config_schema
+    from hydra import compose, initialize_config_dir
+    from hydra.errors import MissingConfigException
+    from omegaconf import OmegaConf
+
+    register_config_schema()
+    with initialize_config_dir(config_dir=str(REPO / "conf"), version_base="1.3"):
+        try:
+            config = compose("config", overrides=[f"algo={method}", f"env={env}"])
+        except MissingConfigException:
+            return None
+        return flatten(OmegaConf.to_container(config, resolve=True, enum_to_str=True))
+
+
+def override_value(value) -> str:
+    """A config value as a Hydra override writes it: ``true``, ``null``, ``[400,300]``, ``0.001``."""
+    if isinstance(value, bool):
+        return str(value).lower()
+    if value is None:
+        return "null"
+    if isinstance(value, list | tuple):
+        return "[" + ",".join(override_value(item) for item in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ",".join(f"{key}:{override_value(item)}" for key, item in value.items()) + "}"
+    return sibling("run_matrix").hydra_value(str(value))
+
+
+def changed_settings(run: Run) -> list[str]:
+    """The overrides that turn what ``algo=<method> env=<env>`` composes now into the run's settings:
+    ``key=value`` for each key of the run's config whose value differs, in key order. Not compared:
+    :data:`COMMAND_KEYS`, another learner's section (:data:`LEARNER_SECTIONS`) and the keys the run's
+    config lacks (settings added after it ran, which its notes name)."""
+    config = run.config
+    defaults = defaults_of(config["algo"]["name"], run.env)
+    if defaults is None:
+        return []
+    learner = (config.get("algo") or {}).get("learner") or defaults.get("algo.learner")
+    skipped = (*COMMAND_KEYS, *(f"algo.{name}." for name in LEARNER_SECTIONS if name != learner))
+    flat = flatten(config)
+    return [
+        f"{key}={override_value(value)}"
+        for key, value in sorted(flat.items())
+        if key in defaults and not key.startswith(skipped) and value != defaults[key]
+    ]
+
+
 def cell_command(group: Group) -> str:
-    """The training command of a group's runs, from their config (seeds as ``<0|1|2>``)."""
+    """The training command of a group's runs, from their config (seeds as ``<0|1|2>``): the settings
+    that differ from what the method composes now (:func:`changed_settings`, of the first seed's run)
+    follow the budget, threads and evaluation."""
     run = group.runs[0]
     config = run.config
-    method = group.method.partition(" (")[0]
+    method = config["algo"]["name"]  # the row may be named otherwise (the replaced default's)
     seeds = "|".join(str(seed) for seed in sorted(r.seed for r in group.runs))
     teacher = (config.get("teacher") or {}).get("path")
     args = [
@@ -1159,6 +1248,7 @@ def cell_command(group: Group) -> str:
         f"threads={config.get('threads')}",
         f"eval.episodes={(config.get('eval') or {}).get('episodes')}",
         f"eval.every_frames={(config.get('eval') or {}).get('every_frames')}",
+        *changed_settings(run),
         *([f"teacher.path=<teachers>/{Path(teacher).name}"] if teacher else []),
     ]
     return " ".join(args)
@@ -1236,16 +1326,32 @@ def standing(groups: dict, teacher: str, envs: list[str], first: str = "sail", s
     return [text, ""]
 
 
+def measure_rows(method: str, row: list[Group | None]) -> list[str]:
+    """The README's rows under a method of :data:`MEASURED`: its best policy (mean ± std over the seeds
+    that kept one) and its fall share (pooled over the seeds that passed), each where some env has one."""
+    stats = [None if group is None else group.stats() for group in row]
+    best = ["-" if st is None else best_policy_cell(st) for st in stats]
+    falls = ["-" if st is None else group_fall(st) for st in stats]
+    return [
+        f"| {method}: {name} | " + " | ".join(cells) + " |"
+        for name, cells in (("best policy", best), ("fall share", falls))
+        if any(cell not in ("-", NA) for cell in cells)
+    ]
+
+
 def readme_section(groups: dict, teacher: str, figure: str, report: str = "results.md") -> str:
     """The README's results section for the runs of ``teacher`` (see the module docstring); ``figure``
-    and ``report`` (the aggregate's ``results.md``, where the notes are) as links from the README."""
+    and ``report`` (the aggregate's ``results.md``, where the notes are) as links from the README.
+    ``groups`` as :func:`default_view` gives them: a replaced default's rows are named so."""
     envs = readme_envs(groups, teacher)
     methods = sort_methods(method for (env, label, method) in groups if label == teacher)
     header = "| method | " + " | ".join(envs) + " |"
     lines = [header, "|---" * (len(envs) + 1) + "|"]
     for method in methods:
-        cells = [readme_cell(groups.get((env, teacher, method))) for env in envs]
-        lines.append(f"| {method} | " + " | ".join(cells) + " |")
+        row = [groups.get((env, teacher, method)) for env in envs]
+        lines.append(f"| {method} | " + " | ".join(readme_cell(group) for group in row) + " |")
+        if method_name(method) in MEASURED:
+            lines += measure_rows(method, row)
     teachers = [pair_groups(groups, env, teacher)[0].teacher_return for env in envs]
     lines.append("| teacher | " + " | ".join(fmt(value) for value in teachers) + " |")
     paper = [PAPER_SAIL.get(paper_env(env)) for env in envs]
@@ -1285,6 +1391,8 @@ def readme_section(groups: dict, teacher: str, figure: str, report: str = "resul
         for note in group_notes(group)
         if group.method not in offline or note not in headline_notes(group)
     ]
+    measured = sorted({method_name(method) for method in methods} & set(MEASURED), key=MEASURED.index)
+    replaced = any(method_name(method) == REPLACED for method in methods)
     text = [
         f"Per run, the mean of its last {HEADLINE_EVALS} deterministic evaluations ({episodes} episodes each)"
         + (f"; offline ({', '.join(offline)}), its one evaluation after training" if offline else "")
@@ -1292,6 +1400,24 @@ def readme_section(groups: dict, teacher: str, figure: str, report: str = "resul
         f"over seeds. Budget per run: {', '.join(frames_label(b) + ' frames' for b in budgets)}. CPUs: "
         f"{', '.join(cpus)}, {'/'.join(map(str, threads))} torch thread per run; wall time about {hours:.0f} h "
         f"in all ({how}).",
+        *(
+            [
+                f"Under {listed([f'`{m}`' for m in measured])}: the policy each run kept by the SAIL authors' "
+                "rule (the best mean return of its last 100 training episodes), evaluated on 50 episodes, mean ± "
+                "std over the seeds that kept one; and the fall share, of the evaluations after a run first passed "
+                "its teacher those below the teacher's return, pooled over seeds."
+            ]
+            if measured
+            else []
+        ),
+        *(
+            [
+                f"`{REPLACED}`: SAIL with the defaults that the trusted default replaced (the settings in the "
+                "commands below)."
+            ]
+            if replaced
+            else []
+        ),
         "",
         *lines,
         "",
@@ -1328,6 +1454,8 @@ class Source:
         teacher: the teacher label of the blocks that show one teacher's runs.
         expect_methods: list these methods as missing where absent (see :func:`missing_runs`).
         expect_seeds: list these seeds as missing where absent.
+        default_label: the teacher label of the default SAIL's runs with ``teacher``'s teacher, where it
+            is another (:func:`default_view`); None: ``teacher``.
     """
 
     def __init__(
@@ -1337,8 +1465,10 @@ class Source:
         teacher: str = "paper",
         expect_methods: list[str] = (),
         expect_seeds: list[int] = (),
+        default_label: str | None = None,
     ) -> None:
         self.roots, self.out, self.teacher = [Path(root) for root in roots], Path(out), teacher
+        self.default_label = default_label
         self.expect_methods, self.expect_seeds = list(expect_methods), list(expect_seeds)
         self._read, self._once = None, {}
 
@@ -1361,6 +1491,11 @@ class Source:
     def groups(self) -> dict[tuple[str, str, str], Group]:
         """The finished runs by (env, teacher, method) (:func:`group_runs`)."""
         return self._runs()[0]
+
+    @property
+    def shown(self) -> dict[tuple[str, str, str], Group]:
+        """:attr:`groups` as the README and the paper's comparison show ``teacher``'s (:func:`default_view`)."""
+        return default_view(self.groups, self.teacher, self.default_label)
 
     @property
     def left_out(self) -> list[tuple[str, str]]:
@@ -1434,16 +1569,16 @@ def readme_figure(source: Source) -> Path:
 
 def block_readme(source: Source, target: Path) -> str:
     """The README's results section for the runs of ``source.teacher`` (:func:`readme_section`)."""
-    if not readme_envs(source.groups, source.teacher):
+    if not readme_envs(source.shown, source.teacher):
         raise ValueError(f"no finished run with teacher {source.teacher!r} for {target}'s results section")
     figure, report = link(readme_figure(source), target), link(source.out / "results.md", target)
-    return readme_section(source.groups, source.teacher, figure, report)
+    return readme_section(source.shown, source.teacher, figure, report)
 
 
 def draw_readme(source: Source) -> None:
     """The README section's figure: one panel per env (:func:`plot_panels`)."""
     source.out.mkdir(parents=True, exist_ok=True)
-    plot_panels(readme_figure(source), source.teacher, readme_envs(source.groups, source.teacher), source.groups)
+    plot_panels(readme_figure(source), source.teacher, readme_envs(source.shown, source.teacher), source.shown)
 
 
 def block_teacher_table(source: Source, target: Path) -> str:
@@ -1473,6 +1608,8 @@ def block_variants(source: Source, target: Path) -> str:
 
 
 COMPARED = ("sail", "dac")  # the seed-by-seed comparison of the paper's table: SAIL against the authors' DAC
+# the methods whose README rows also show the best policy and the fall share beside last-5
+MEASURED = ("sail", REPLACED, "dac")
 
 
 def block_compared(source: Source, target: Path) -> str:
@@ -1725,9 +1862,9 @@ def draw_paper_comparison(source: Source) -> None:
     """The curves of the paper's Figures 2-4 (:data:`PAPER_FIGURES`), one panel per env where they ran."""
     source.out.mkdir(parents=True, exist_ok=True)
     for name, _, methods in PAPER_FIGURES:
-        envs = paper_figure_envs(source.groups, source.teacher, methods)
+        envs = paper_figure_envs(source.shown, source.teacher, methods)
         if envs:
-            plot_panels(paper_figure(source, name), source.teacher, envs, source.groups, methods)
+            plot_panels(paper_figure(source, name), source.teacher, envs, source.shown, methods)
 
 
 def block_paper_comparison(source: Source, target: Path) -> str:
@@ -1735,7 +1872,7 @@ def block_paper_comparison(source: Source, target: Path) -> str:
     variants, beside the paper's figures), Figure 2's baselines and Figures 3-4's variants of SAIL
     (curves only in the paper: their tables, then their curves), each cell the last-5 mean ± std over
     seeds and the best policy's."""
-    groups, teacher = source.groups, source.teacher
+    groups, teacher = source.shown, source.teacher
     envs = envs_with(groups, teacher, TABLE1_ROWS, readme_envs(groups, teacher))
     if not envs:
         raise ValueError(f"no finished run of SAIL or its variants with teacher {teacher!r} for {target}")
@@ -1938,7 +2075,9 @@ FALLS = {
 def source_of(folder: Path, sources: dict[Path, Source]) -> Source:
     """The :class:`Source` of a folder of :data:`DOCUMENTS` (its report: ``<folder>/report``), read once."""
     if folder not in sources:
-        sources[folder] = Source([folder], folder / "report")
+        # the campaign's SAIL default: the label of its runs with the paper's teachers (TABLE1_LABEL)
+        default_label = sibling("campaign").TABLE1_LABEL if folder == CAMPAIGN else None
+        sources[folder] = Source([folder], folder / "report", default_label=default_label)
     return sources[folder]
 
 
@@ -2045,6 +2184,7 @@ def aggregate(
     per_run: bool = False,
     write_into: list[tuple[Path, str]] = (),
     teacher: str = "paper",
+    default_label: str | None = None,
 ) -> str:
     """Reads the runs under ``roots``, writes the table, CSV and curves to ``out``; returns the Markdown
     (with ``per_run``, each finished run's :func:`run_details` after it). Also writes each
@@ -2059,7 +2199,7 @@ def aggregate(
         raise ValueError(f"no generated block named {', '.join(unknown)}; the blocks: {', '.join(BLOCKS)}")
     for path, name in write_into:
         replace_block(Path(path).read_text(), name, "", path)  # the markers are there, before any work
-    source = Source(roots, out, teacher, expect_methods, expect_seeds)
+    source = Source(roots, out, teacher, expect_methods, expect_seeds, default_label)
     source.draw_curves()
     write_atomic(out / "results.csv", csv_text(rows(source.groups)))
     text = source.report(per_run)
@@ -2099,6 +2239,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         help=f"write a generated block between its markers in FILE (repeatable); blocks: {', '.join(BLOCKS)}",
     )
     parser.add_argument("--teacher", default="paper", help="the teacher label of the blocks that show one teacher")
+    parser.add_argument(
+        "--default-label",
+        help="the teacher label of the default SAIL's runs with that teacher, where it is another: their rows "
+        "are sail's, the --teacher label's sail rows the replaced default's",
+    )
     modes = parser.add_mutually_exclusive_group()
     modes.add_argument(
         "--update-docs",
@@ -2138,6 +2283,7 @@ def main(argv: list[str] | None = None) -> None:
             args.per_run,
             write_into=args.write_into,
             teacher=args.teacher,
+            default_label=args.default_label,
         )
         print(text, end="")
     except (FileNotFoundError, ValueError) as err:
