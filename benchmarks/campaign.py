@@ -668,7 +668,8 @@ def main(argv: list[str] | None = None) -> int:
     if "precision" in stages and not args.dry_run and not native_bf16_matmul(device):
         parser.error(
             f"--stages precision runs optim.precision=bf16, which the {device} here emulates (a CPU without "
-            "AVX-512 or AMX: ~20x slower): run it where bf16 is native, or on a GPU with --overrides device=cuda"
+            "AVX-512 or AMX: many times slower, docs/performance.md): run it where bf16 is native, or on a GPU "
+            "with --overrides device=cuda"
         )
     cells = started_first(cells, out)
     commands = [
