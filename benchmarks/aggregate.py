@@ -89,6 +89,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import copy
 import csv
 import dataclasses
 import functools
@@ -113,6 +114,7 @@ from torchrl_sail.harness import (
     ACTOR_SATURATED,
     COLLECTED_SCALARS,
     D_SATURATED,
+    config_changes,
     fall_share,
     read_scalar,
     write_atomic,
@@ -672,18 +674,22 @@ def default_view(groups: dict, teacher: str, default_label: str | None) -> dict:
     """``groups`` as the README and the paper's comparison show ``teacher``'s runs: where the default
     SAIL's runs with that teacher have a label of their own (``default_label``: the campaign's
     ``TABLE1_LABEL``, ``paper-trusted`` once the trusted default replaced the defaults), its ``sail``
-    groups stand as ``teacher``'s, and ``teacher``'s own ``sail`` groups become the rows of the
-    replaced default (:data:`REPLACED`). Every ``sail`` row then names its budget, ``sail (300k)``."""
+    groups stand as ``teacher``'s, and on each env where they do, ``teacher``'s own ``sail`` groups
+    become the replaced default's rows (:data:`REPLACED`; on an env the default's label has no run of,
+    ``teacher``'s SAIL runs are the default's). Every ``sail`` row then names its budget, ``sail
+    (300k)``; a group keeps its own teacher label, which its notes name."""
     if default_label is None or default_label == teacher:
         return groups
+    replaced_envs = {env for env, label, method in groups if label == default_label and method_name(method) == "sail"}
     view = {}
     for (env, label, method), group in groups.items():
         if method_name(method) != "sail" or label not in (teacher, default_label):
             view[env, label, method] = group
             continue
-        name = "sail" if label == default_label else REPLACED
-        shown = f"{name} ({frames_label(total_frames(group.runs[0]))})"
-        view[env, teacher, shown] = dataclasses.replace(group, teacher=teacher, method=shown)
+        name = REPLACED if label == teacher and env in replaced_envs else "sail"
+        frames = total_frames(group.runs[0])
+        shown = name if frames is None else f"{name} ({frames_label(frames)})"
+        view[env, teacher, shown] = dataclasses.replace(group, method=shown)
     return view
 
 
@@ -1179,27 +1185,47 @@ LEARNER_SECTIONS = ("sac", "ppo", "bc")
 COMMAND_KEYS = ("collector.total_frames", "eval.episodes", "eval.every_frames", *PER_RUN_KEYS, "checkpoint.")
 
 
+def examples_module(name: str):
+    """``examples/<name>.py`` as a module (``config_schema``: the scripts' typed config)."""
+    script_of("sail")  # puts examples/ on sys.path
+    return importlib.import_module(name)
+
+
 @functools.cache
 def defaults_of(method: str, env: str) -> dict | None:
-    """The flattened config ``algo=<method> env=<env>`` composes now (interpolations resolved, enums
-    as their names); None where ``conf/`` has no such method or env."""
-    script_of(method)  # puts examples/ on sys.path
-    from config_schema import register_config_schema
+    """The config ``algo=<method> env=<env>`` composes now, as a plain container (interpolations
+    resolved, enums as their names); None where ``conf/`` has no such method or env."""
     from hydra import compose, initialize_config_dir
     from hydra.errors import MissingConfigException
     from omegaconf import OmegaConf
 
-    register_config_schema()
+    examples_module("config_schema").register_config_schema()
     with initialize_config_dir(config_dir=str(REPO / "conf"), version_base="1.3"):
         try:
             config = compose("config", overrides=[f"algo={method}", f"env={env}"])
         except MissingConfigException:
             return None
-        return flatten(OmegaConf.to_container(config, resolve=True, enum_to_str=True))
+        return OmegaConf.to_container(config, resolve=True, enum_to_str=True)
+
+
+def ran_with(config: dict) -> dict:
+    """A run's saved config with each setting of ``config_schema.SAVED_BEFORE`` that its version did
+    not have at the value it ran with (a copy)."""
+    completed = copy.deepcopy(config)
+    for key, value in examples_module("config_schema").SAVED_BEFORE.items():
+        *sections, name = key.split(".")
+        node = completed
+        for section in sections:
+            node = node.setdefault(section, {})
+            if not isinstance(node, dict):  # a section the run has switched off (None)
+                break
+        else:
+            node.setdefault(name, value)
+    return completed
 
 
 def override_value(value) -> str:
-    """A config value as a Hydra override writes it: ``true``, ``null``, ``[400,300]``, ``0.001``."""
+    """A config value as a Hydra override writes it: ``true``, ``null``, ``[400,300]``, ``{a:1}``, ``0.001``."""
     if isinstance(value, bool):
         return str(value).lower()
     if value is None:
@@ -1212,22 +1238,18 @@ def override_value(value) -> str:
 
 
 def changed_settings(run: Run) -> list[str]:
-    """The overrides that turn what ``algo=<method> env=<env>`` composes now into the run's settings:
-    ``key=value`` for each key of the run's config whose value differs, in key order. Not compared:
-    :data:`COMMAND_KEYS`, another learner's section (:data:`LEARNER_SECTIONS`) and the keys the run's
-    config lacks (settings added after it ran, which its notes name)."""
+    """The overrides that turn what ``algo=<method> env=<env>`` composes now into what the run ran with
+    (:func:`ran_with`): ``key=value`` for each setting that differs, in key order, a section switched
+    on or off and ``env.kwargs`` as whole values (``harness.config_changes``). Not compared:
+    :data:`COMMAND_KEYS` and another learner's section (:data:`LEARNER_SECTIONS`)."""
     config = run.config
     defaults = defaults_of(config["algo"]["name"], run.env)
     if defaults is None:
         return []
-    learner = (config.get("algo") or {}).get("learner") or defaults.get("algo.learner")
+    learner = (config.get("algo") or {}).get("learner") or defaults["algo"]["learner"]
     skipped = (*COMMAND_KEYS, *(f"algo.{name}." for name in LEARNER_SECTIONS if name != learner))
-    flat = flatten(config)
-    return [
-        f"{key}={override_value(value)}"
-        for key, value in sorted(flat.items())
-        if key in defaults and not key.startswith(skipped) and value != defaults[key]
-    ]
+    changes = config_changes(ran_with(config), defaults)
+    return [f"{key}={override_value(ran)}" for key, (ran, _) in changes.items() if not f"{key}.".startswith(skipped)]
 
 
 def cell_command(group: Group) -> str:
@@ -1614,16 +1636,18 @@ MEASURED = ("sail", REPLACED, "dac")
 
 def block_compared(source: Source, target: Path) -> str:
     """Per env, the last-5 mean of every seed of ``COMPARED``'s two methods with ``source.teacher`` at one
-    budget, how many seeds of each end above every seed of the other, and Welch's t-test."""
+    budget (SAIL's default's runs, :attr:`Source.shown`), how many seeds of each end above every seed of
+    the other, and Welch's t-test."""
     first, second = COMPARED
+    groups = source.shown
     lines = [
         f"| env | teacher (return) | {first}: last-{HEADLINE_EVALS} (seed) | {second}: last-{HEADLINE_EVALS} (seed) "
         f"| {first} seeds above every {second} seed | {second} seeds above every {first} seed | Welch t | Welch p |",
         "|---|---|---|---|---|---|---|---|",
     ]
-    for env in readme_envs(source.groups, source.teacher):
+    for env in readme_envs(groups, source.teacher):
         pairs = {}
-        for group in pair_groups(source.groups, env, source.teacher):
+        for group in pair_groups(groups, env, source.teacher):
             pairs.setdefault(total_frames(group.runs[0]), {})[method_name(group.method)] = group
         for _, methods in sorted(pairs.items(), key=lambda item: item[0] or 0):
             if first not in methods or second not in methods:

@@ -24,7 +24,7 @@ from enum import Enum
 from typing import Any
 
 from hydra.core.config_store import ConfigStore
-from omegaconf import II, MISSING, DictConfig
+from omegaconf import II, MISSING, DictConfig, OmegaConf
 
 
 class Choice(str, Enum):
@@ -516,6 +516,37 @@ def register_config_schema() -> None:
     store.store(name="sail_config", node=SAILConfig)
     store.store(name="evaluate_config", node=EvaluateConfig)
     store.store(name="make_teacher_config", node=MakeTeacherConfig)
+
+
+#: What a run saved before each of these settings existed ran with: not the schema's default
+#: (``eval.vectorized``), or not what a method's file sets now (``conf/algo``: ``dac_published``'s
+#: release loop and inits, SAIL's settings the campaign decides), so that a command reproducing an
+#: older run names them (``benchmarks/aggregate.py``).
+SAVED_BEFORE = {
+    "eval.vectorized": False,
+    "eval.actor": "online",
+    "eval.other_actor": False,
+    "optim.actor_preactivation_coef": 0.0,
+    "optim.cadence": "frames",
+    "optim.block_order": "td3_first",
+    "optim.start_frames": None,
+    "collector.random_until_actor": False,
+    "network.actor_critic_init": "torch",
+    "network.discriminator_init": "xavier",
+    "network.critic_layer_norm": False,
+}
+
+
+def saved_run_config(saved: DictConfig) -> DictConfig:
+    """A run's saved ``config.yaml`` over the schema's defaults: each setting its version did not have
+    takes the value it ran with, :data:`SAVED_BEFORE`'s where recorded, else the schema's default; keys
+    removed since are kept, unread. ``saved`` is left as it is."""
+    defaults, saved = OmegaConf.structured(SAILConfig), saved.copy()
+    OmegaConf.set_struct(defaults, False)
+    for key, value in SAVED_BEFORE.items():
+        if OmegaConf.select(saved, key, default="absent") == "absent":
+            OmegaConf.update(saved, key, value)
+    return OmegaConf.merge(defaults, saved)
 
 
 # ----------------------------------------------------------------------------- scripts

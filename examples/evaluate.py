@@ -40,7 +40,7 @@ from pathlib import Path
 
 import hydra
 import torch
-from config_schema import SAILConfig, register_config_schema
+from config_schema import register_config_schema, saved_run_config
 from omegaconf import OmegaConf
 from run_utils import evaluate_episodes, load_kept_policy, make_actor_average, seed_everything
 from torchrl.checkpoint import Checkpoint
@@ -61,8 +61,6 @@ from torchrl_sail.harness import BEST_EVALUATED_POLICY, BEST_POLICY, CONFIG, che
 
 register_config_schema()
 
-# a run saved before these settings existed ran as these values say (not as the schema's defaults)
-SAVED_BEFORE = {"eval.vectorized": False}
 # policy=: the file of each policy a run keeps beside its checkpoint, and how the report names it
 KEPT_POLICIES = {"best": BEST_POLICY, "best_evaluated": BEST_EVALUATED_POLICY}
 POLICY_LABELS = {"last": "checkpoint", "best": "best policy", "best_evaluated": "best evaluated policy"}
@@ -83,14 +81,7 @@ def load_run(run_dir: Path):
         )
     run = {}
     Checkpoint(run=run).load(checkpoint, components=["run"])
-    # over the schema's defaults: a run saved before a setting existed gets its default, or the
-    # value it ran with (SAVED_BEFORE); keys since removed are kept, unread
-    defaults, saved = OmegaConf.structured(SAILConfig), OmegaConf.load(config)
-    OmegaConf.set_struct(defaults, False)
-    for key, value in SAVED_BEFORE.items():
-        if OmegaConf.select(saved, key) is None:
-            OmegaConf.update(saved, key, value)
-    return OmegaConf.merge(defaults, saved), run
+    return saved_run_config(OmegaConf.load(config)), run
 
 
 def load_actor(cfg, env, checkpoint: Path, which: str = "online", kept_policy: Path | None = None):

@@ -625,7 +625,7 @@ def test_readme_section_in_the_papers_format(tmp_path):
             total_frames=5000,
             frames=5000,
             threads=1,
-            eval={"episodes": 10, "every_frames": 1000},
+            eval={"episodes": 10, "every_frames": 1000, "vectorized": True},
         )
         summary = json.loads((folder / "summary.json").read_text())
         provenance = {"cpu_model": "Test CPU", "torch_threads": 1}
@@ -969,31 +969,32 @@ def test_shipped_teachers_block_in_table1_order_beside_the_papers_v4_teachers(tm
 
 def test_readme_shows_the_default_label_as_sail_the_replaced_default_and_their_settings(tmp_path):
     """With the default SAIL's runs under a label of their own (the campaign's TABLE1_LABEL), the README's
-    ``sail`` rows are theirs and the teacher's own SAIL runs become the replaced default's rows; SAIL and
-    DAC rows carry their best policy and fall share; each command holds the settings that differ from
-    what its method composes now."""
+    ``sail`` rows are theirs; on each env where they ran, the teacher's own SAIL runs become the replaced
+    default's rows, elsewhere they stay ``sail``'s; SAIL and DAC rows carry their best policy and fall
+    share; each command holds the settings that differ from what its method composes now."""
     root = tmp_path / "campaign"
-    target = {"eval": {"actor": "target"}}  # the trusted default's setting, not the schema's
-    cells = (  # teacher 150: stage, label, method, seed, evals, best policy, run-only settings
-        ("main", "paper", "sail", 0, [100.0, 200.0, 100.0, 200.0, 200.0], None, {}),  # passes, 1 fall in 3
-        ("main", "paper", "dac", 0, [100.0] * 5, None, {}),  # never passes
-        ("trusted", "paper-trusted", "sail", 0, [200.0] * 5, 300.0, target),
-        ("trusted", "paper-trusted", "sail", 1, [160.0, 170.0, 100.0, 180.0, 190.0], 500.0, target),
+    own = {"network": {"actor_cells": [64, 64]}}  # a setting of the default's runs alone
+    cells = (  # teacher 150: stage, label, env, method, seed, evals, best policy, settings
+        ("main", "paper", "Hopper-v4", "sail", 0, [100.0, 200.0, 100.0, 200.0, 200.0], None, {}),  # 1 fall in 3
+        ("main", "paper", "Hopper-v4", "dac", 0, [100.0] * 5, None, {}),  # never passes
+        ("main", "paper", "Swimmer-v4", "sail", 0, [300.0] * 5, None, {}),  # no default run on Swimmer
+        ("trusted", "paper-trusted", "Hopper-v4", "sail", 0, [200.0] * 5, 300.0, own),
+        ("trusted", "paper-trusted", "Hopper-v4", "sail", 1, [160.0, 170.0, 100.0, 180.0, 190.0], 500.0, own),
     )
-    for stage, label, method, seed, evals, best, settings in cells:
+    for stage, label, env, method, seed, evals, best, settings in cells:
         out = root / stage
-        run_matrix.record_matrix(out, [run_matrix.Teacher(label, tmp_path / "p.npz")], [method], ["Hopper-v4"], [seed])
-        config = {**settings, "eval": {"episodes": 10, "every_frames": 1000, **settings.get("eval", {})}}
+        run_matrix.record_matrix(out, [run_matrix.Teacher(label, tmp_path / "p.npz")], [method], [env], [seed])
         folder = write_run(
-            out / label / "Hopper-v4" / method / f"seed{seed}",
+            out / label / env / method / f"seed{seed}",
+            env=env,
             algo=method,
             seed=seed,
             evals=frames_curve(evals),
             total_frames=5000,
             frames=5000,
             threads=1,
-            optim={"actor_preactivation_coef": 0.0},  # the schema's default: no override
-            **config,
+            eval={"episodes": 10, "every_frames": 1000, "vectorized": True},
+            **settings,
         )
         if best is not None:
             update_summary(folder, best_policy={"eval_return": best, "episodes": 50})
@@ -1003,62 +1004,89 @@ def test_readme_shows_the_default_label_as_sail_the_replaced_default_and_their_s
     run_aggregate([root], tmp_path / "report", write_into=[(readme, "campaign-readme")], default_label="paper-trusted")
     text = readme.read_text()
     table = [line for line in text.splitlines() if line.startswith("| ")]
-    assert table == [
-        "| method | Hopper-v4 |",
-        "| sail (5k) | 180.0 ± 28.3 (2 seeds) |",  # 200 and (160 + 170 + 100 + 180 + 190) / 5 = 160; std 40 / sqrt 2
-        "| sail (5k): best policy | 400.0 ± 141.4 |",
-        "| sail (5k): fall share | 12.5% (1/8) |",  # seed 0 passes at its first eval: 0 of 4; seed 1: 100 of 4
-        "| sail, replaced default (5k) | 160.0 (1 seed) |",
-        "| sail, replaced default (5k): fall share | 33.3% (1/3) |",  # passes at its 2nd eval; no best policy row
-        "| dac | 100.0 (1 seed) |",  # never passed: no fall share on any env, no row
-        "| teacher | 150.0 |",
-        "| SAIL in the paper (1M frames, -v2 envs) | 3302.1 ± 14.2 |",
-    ]
+    assert (
+        table
+        == [
+            "| method | Swimmer-v4 | Hopper-v4 |",
+            # 200 and (160 + 170 + 100 + 180 + 190) / 5 = 160: std 40 / sqrt(2); Swimmer's own SAIL run stays sail's
+            "| sail (5k) | 300.0 (1 seed) | 180.0 ± 28.3 (2 seeds) |",
+            "| sail (5k): best policy | - | 400.0 ± 141.4 |",
+            "| sail (5k): fall share | 0.0% (0/4) | 12.5% (1/8) |",  # seed 0 passes at its first eval: 0 of 4; seed 1: 1 of 4
+            "| sail, replaced default (5k) | - | 160.0 (1 seed) |",
+            "| sail, replaced default (5k): fall share | - | 33.3% (1/3) |",  # passes at its 2nd eval; no best policy row
+            "| dac | - | 100.0 (1 seed) |",  # never passed: no fall share on any env, no row
+            "| teacher | 150.0 | 150.0 |",
+            "| SAIL in the paper (1M frames, -v2 envs) | 309.5 ± 3.0 | 3302.1 ± 14.2 |",
+        ]
+    )
     assert "`sail, replaced default`: SAIL with the defaults that the trusted default replaced" in text
     commands = [line for line in text.splitlines() if line.startswith("python ")]
+    common = "collector.total_frames=5000 threads=1 eval.episodes=10 eval.every_frames=1000"
     assert commands == [
-        "python examples/sail_td3.py algo=sail env=Hopper-v4 seed=<0|1> collector.total_frames=5000 threads=1 "
-        "eval.episodes=10 eval.every_frames=1000 eval.actor=target teacher.path=<teachers>/paper.npz",
-        "python examples/sail_td3.py algo=sail env=Hopper-v4 seed=0 collector.total_frames=5000 threads=1 "
-        "eval.episodes=10 eval.every_frames=1000 teacher.path=<teachers>/paper.npz",
-        "python examples/sail_td3.py algo=dac env=Hopper-v4 seed=0 collector.total_frames=5000 threads=1 "
-        "eval.episodes=10 eval.every_frames=1000 teacher.path=<teachers>/paper.npz",
+        f"python examples/sail_td3.py algo=sail env=Swimmer-v4 seed=0 {common} teacher.path=<teachers>/paper.npz",
+        f"python examples/sail_td3.py algo=sail env=Hopper-v4 seed=<0|1> {common} network.actor_cells=[64,64] "
+        "teacher.path=<teachers>/paper.npz",
+        f"python examples/sail_td3.py algo=sail env=Hopper-v4 seed=0 {common} teacher.path=<teachers>/paper.npz",
+        f"python examples/sail_td3.py algo=dac env=Hopper-v4 seed=0 {common} teacher.path=<teachers>/paper.npz",
     ]
+    # the seed-by-seed comparison with DAC takes the default's runs too
+    docs = tmp_path / "results.md"
+    docs.write_text("<!-- aggregate:campaign-sail-vs-dac START -->\n<!-- aggregate:campaign-sail-vs-dac END -->\n")
+    run_aggregate(
+        [root], tmp_path / "report", write_into=[(docs, "campaign-sail-vs-dac")], default_label="paper-trusted"
+    )
+    assert "| Hopper-v4 | paper (150.0) | 200.0 (0), 160.0 (1) | 100.0 (0) | 2/2 | 0/1 |" in docs.read_text()
     # without a default label of its own, the teacher's SAIL runs are sail's, as before
     run_aggregate([root / "main"], tmp_path / "report_main", write_into=[(readme, "campaign-readme")])
     rows_ = [line for line in readme.read_text().splitlines() if line.startswith("| sail")]
-    assert rows_ == ["| sail | 160.0 (1 seed) |", "| sail: fall share | 33.3% (1/3) |"]
+    assert rows_ == ["| sail | 300.0 (1 seed) | 160.0 (1 seed) |", "| sail: fall share | 0.0% (0/4) | 33.3% (1/3) |"]
 
 
 def test_changed_settings_are_the_overrides_from_what_the_method_composes_now():
     def run(method: str, **config) -> aggregate.Run:
         config = {"env": {"name": "Hopper-v4"}, "algo": {"name": method}, "seed": 3, **config}
+        config["eval"] = {"vectorized": True, **config.get("eval", {})}  # saved by this version
         return aggregate.Run(Path("r"), "Hopper-v4", method, 3, "paper", config, None, [])
 
     changed = run(
         "sail",
-        optim={"actor_preactivation_coef": 0.001, "lr": 0.001},  # the first differs, the second is the default
+        optim={"lr": 0.001, "tau": 0.01},  # lr is the default, tau not
         network={"actor_cells": [64, 64]},
-        eval={"actor": "target", "episodes": 3},  # episodes: the command shows it anyway
-        algo={"name": "sail", "sac": {"alpha_init": 1.0}},  # SAC's section: not read by a TD3 run
+        eval={"other_actor": True, "episodes": 3},  # episodes: the command shows it anyway
+        algo={"name": "sail", "sac": {"alpha_init": 1.0}, "per": None},  # SAC's section: not read by TD3
         checkpoint={"every_frames": 7},  # operational
         logger={"backends": ["csv"]},
         threads=1,
         resume="auto",
         teacher={"path": "/x.npz", "eviction": "fifo"},
-        new_in_a_later_commit_absent_here=None,
+        env={"name": "Hopper-v4", "kwargs": {"ctrl_cost_weight": 5.0}},  # an open mapping: whole
+        no_longer_a_setting=None,
     )
     assert aggregate.changed_settings(changed) == [
-        "eval.actor=target",
+        "env.kwargs={ctrl_cost_weight:5.0}",
+        "eval.other_actor=true",
         "network.actor_cells=[64,64]",
-        "optim.actor_preactivation_coef=0.001",
+        "optim.tau=0.01",
         "teacher.eviction=fifo",
     ]
+    # a section switched off where the method has it on, and a learner's own section
+    ddpgfd = run("ddpgfd", algo={"name": "ddpgfd", "per": None})
+    assert aggregate.changed_settings(ddpgfd) == ["algo.per=null"]
     assert aggregate.changed_settings(run("sail_sac", algo={"name": "sail_sac", "sac": {"alpha_init": 1.0}})) == [
         "algo.sac.alpha_init=1.0"  # SAIL-SAC's own section: the authors' 0.01 is its default
     ]
-    assert aggregate.changed_settings(run("dac_published", collector={"random_until_actor": False})) == [
-        "collector.random_until_actor=false"
+    # settings a run's version did not have count at the value it ran with (config_schema.SAVED_BEFORE):
+    # a dac_published run from before the release's loop and inits, evaluating one episode after another
+    old = run("dac_published", algo={"name": "dac_published"})
+    del old.config["eval"]
+    assert aggregate.changed_settings(old) == [
+        "collector.random_until_actor=false",
+        "eval.vectorized=false",
+        "network.actor_critic_init=torch",
+        "network.discriminator_init=xavier",
+        "optim.block_order=td3_first",
+        "optim.cadence=frames",
+        "optim.start_frames=null",
     ]
     unknown_env = run("sail", optim={"lr": 0.5})
     unknown_env.env = "NoSuchEnv-v0"
