@@ -33,9 +33,11 @@ def write_run(
     frames: int | None = 3000,
     finished: bool = True,
     offline: bool = False,
+    this_version: bool = False,
     **config_extra,
 ) -> Path:
-    """A run folder as ``sail_td3.py`` writes it: config.yaml, the eval CSV, summary.json if finished."""
+    """A run folder as ``sail_td3.py`` writes it: config.yaml, the eval CSV, summary.json if finished.
+    ``this_version``: its config also holds the settings that older runs lack, as this version saves them."""
     folder.mkdir(parents=True)
     config = {
         "env": {"name": env},
@@ -45,6 +47,8 @@ def write_run(
         "collector": {"total_frames": total_frames},
         **config_extra,
     }
+    if this_version:
+        saved_by_this_version(config)
     (folder / "config.yaml").write_text(yaml.safe_dump(config))
     scalars = folder / "logs" / "scalars" / "eval"
     scalars.mkdir(parents=True)
@@ -64,6 +68,19 @@ def write_run(
         }
         (folder / "summary.json").write_text(json.dumps(summary))
     return folder
+
+
+def saved_by_this_version(config: dict) -> dict:
+    """``config`` (changed in place) with each setting of ``config_schema.SAVED_BEFORE`` it lacks at what
+    its method composes now: what a run of this version saves, whatever the defaults are."""
+    defaults = aggregate.defaults_of(config["algo"]["name"], config["env"]["name"])
+    for key in aggregate.examples_module("config_schema").SAVED_BEFORE:
+        *sections, name = key.split(".")
+        source, target = defaults, config
+        for section in sections:
+            source, target = source[section], target.setdefault(section, {})
+        target.setdefault(name, source[name])
+    return config
 
 
 def read_csv(path: Path) -> list[dict]:
@@ -625,7 +642,8 @@ def test_readme_section_in_the_papers_format(tmp_path):
             total_frames=5000,
             frames=5000,
             threads=1,
-            eval={"episodes": 10, "every_frames": 1000, "vectorized": True},
+            eval={"episodes": 10, "every_frames": 1000},
+            this_version=True,
         )
         summary = json.loads((folder / "summary.json").read_text())
         provenance = {"cpu_model": "Test CPU", "torch_threads": 1}
@@ -993,7 +1011,8 @@ def test_readme_shows_the_default_label_as_sail_the_replaced_default_and_their_s
             total_frames=5000,
             frames=5000,
             threads=1,
-            eval={"episodes": 10, "every_frames": 1000, "vectorized": True},
+            eval={"episodes": 10, "every_frames": 1000},
+            this_version=True,
             **settings,
         )
         if best is not None:
@@ -1004,21 +1023,20 @@ def test_readme_shows_the_default_label_as_sail_the_replaced_default_and_their_s
     run_aggregate([root], tmp_path / "report", write_into=[(readme, "campaign-readme")], default_label="paper-trusted")
     text = readme.read_text()
     table = [line for line in text.splitlines() if line.startswith("| ")]
-    assert (
-        table
-        == [
-            "| method | Swimmer-v4 | Hopper-v4 |",
-            # 200 and (160 + 170 + 100 + 180 + 190) / 5 = 160: std 40 / sqrt(2); Swimmer's own SAIL run stays sail's
-            "| sail (5k) | 300.0 (1 seed) | 180.0 ± 28.3 (2 seeds) |",
-            "| sail (5k): best policy | - | 400.0 ± 141.4 |",
-            "| sail (5k): fall share | 0.0% (0/4) | 12.5% (1/8) |",  # seed 0 passes at its first eval: 0 of 4; seed 1: 1 of 4
-            "| sail, replaced default (5k) | - | 160.0 (1 seed) |",
-            "| sail, replaced default (5k): fall share | - | 33.3% (1/3) |",  # passes at its 2nd eval; no best policy row
-            "| dac | - | 100.0 (1 seed) |",  # never passed: no fall share on any env, no row
-            "| teacher | 150.0 | 150.0 |",
-            "| SAIL in the paper (1M frames, -v2 envs) | 309.5 ± 3.0 | 3302.1 ± 14.2 |",
-        ]
-    )
+    assert table == [
+        "| method | Swimmer-v4 | Hopper-v4 |",
+        # 200 and (160 + 170 + 100 + 180 + 190) / 5 = 160: std 40 / sqrt(2); Swimmer's own SAIL run stays sail's
+        "| sail (5k) | 300.0 (1 seed) | 180.0 ± 28.3 (2 seeds) |",
+        "| sail (5k): best policy | - | 400.0 ± 141.4 |",
+        # seed 0 passes at its first eval, 0 falls of 4; seed 1 too, 1 of 4
+        "| sail (5k): fall share | 0.0% (0/4) | 12.5% (1/8) |",
+        "| sail, replaced default (5k) | - | 160.0 (1 seed) |",
+        # passes at its 2nd eval; no best policy, no row
+        "| sail, replaced default (5k): fall share | - | 33.3% (1/3) |",
+        "| dac | - | 100.0 (1 seed) |",  # never passed: no fall share on any env, no row
+        "| teacher | 150.0 | 150.0 |",
+        "| SAIL in the paper (1M frames, -v2 envs) | 309.5 ± 3.0 | 3302.1 ± 14.2 |",
+    ]
     assert "`sail, replaced default`: SAIL with the defaults that the trusted default replaced" in text
     commands = [line for line in text.splitlines() if line.startswith("python ")]
     common = "collector.total_frames=5000 threads=1 eval.episodes=10 eval.every_frames=1000"
@@ -1044,8 +1062,7 @@ def test_readme_shows_the_default_label_as_sail_the_replaced_default_and_their_s
 
 def test_changed_settings_are_the_overrides_from_what_the_method_composes_now():
     def run(method: str, **config) -> aggregate.Run:
-        config = {"env": {"name": "Hopper-v4"}, "algo": {"name": method}, "seed": 3, **config}
-        config["eval"] = {"vectorized": True, **config.get("eval", {})}  # saved by this version
+        config = saved_by_this_version({"env": {"name": "Hopper-v4"}, "algo": {"name": method}, "seed": 3, **config})
         return aggregate.Run(Path("r"), "Hopper-v4", method, 3, "paper", config, None, [])
 
     changed = run(
@@ -1078,7 +1095,7 @@ def test_changed_settings_are_the_overrides_from_what_the_method_composes_now():
     # settings a run's version did not have count at the value it ran with (config_schema.SAVED_BEFORE):
     # a dac_published run from before the release's loop and inits, evaluating one episode after another
     old = run("dac_published", algo={"name": "dac_published"})
-    del old.config["eval"]
+    old.config = {"env": {"name": "Hopper-v4"}, "algo": {"name": "dac_published"}, "seed": 3}
     assert aggregate.changed_settings(old) == [
         "collector.random_until_actor=false",
         "eval.vectorized=false",
