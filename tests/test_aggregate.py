@@ -1108,3 +1108,17 @@ def test_changed_settings_are_the_overrides_from_what_the_method_composes_now():
     unknown_env = run("sail", optim={"lr": 0.5})
     unknown_env.env = "NoSuchEnv-v0"
     assert aggregate.changed_settings(unknown_env) == []  # nothing to compare with
+
+
+def test_override_values_as_hydra_parses_them_and_the_default_label_option():
+    assert [aggregate.override_value(v) for v in (True, None, 0.001, [64, 64], {"a": 1.0}, "fifo", "a b,c")] == [
+        "true",
+        "null",
+        "0.001",
+        "[64,64]",
+        "{a:1.0}",
+        "fifo",
+        "'a b,c'",  # quoted: a comma or space would split the override
+    ]
+    args = aggregate.parse_args(["runs", "--out", "report", "--default-label", "paper-trusted"])
+    assert args.default_label == "paper-trusted" and aggregate.parse_args(["runs", "--out", "r"]).default_label is None
