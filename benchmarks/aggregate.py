@@ -1413,7 +1413,14 @@ def readme_section(groups: dict, teacher: str, figure: str, report: str = "resul
         for note in group_notes(group)
         if group.method not in offline or note not in headline_notes(group)
     ]
-    measured = sorted({method_name(method) for method in methods} & set(MEASURED), key=MEASURED.index)
+    # what the rows under a method of MEASURED say, for the kinds of row the table has
+    kinds = {
+        "best policy": "the policy each run kept by the SAIL authors' rule (the best mean return of its last 100 "
+        "training episodes), evaluated on 50 episodes, mean ± std over the seeds that kept one",
+        "fall share": "of the evaluations after a run first passed its teacher, those below the teacher's return, "
+        "pooled over seeds",
+    }
+    measured = [f"`<method>: {kind}`, {what}" for kind, what in kinds.items() if any(f": {kind} |" in x for x in lines)]
     replaced = any(method_name(method) == REPLACED for method in methods)
     text = [
         f"Per run, the mean of its last {HEADLINE_EVALS} deterministic evaluations ({episodes} episodes each)"
@@ -1422,16 +1429,7 @@ def readme_section(groups: dict, teacher: str, figure: str, report: str = "resul
         f"over seeds. Budget per run: {', '.join(frames_label(b) + ' frames' for b in budgets)}. CPUs: "
         f"{', '.join(cpus)}, {'/'.join(map(str, threads))} torch thread per run; wall time about {hours:.0f} h "
         f"in all ({how}).",
-        *(
-            [
-                f"Under {listed([f'`{m}`' for m in measured])}: the policy each run kept by the SAIL authors' "
-                "rule (the best mean return of its last 100 training episodes), evaluated on 50 episodes, mean ± "
-                "std over the seeds that kept one; and the fall share, of the evaluations after a run first passed "
-                "its teacher those below the teacher's return, pooled over seeds."
-            ]
-            if measured
-            else []
-        ),
+        *([f"Rows {'; '.join(measured)}."] if measured else []),
         *(
             [
                 f"`{REPLACED}`: SAIL with the defaults that the trusted default replaced (the settings in the "

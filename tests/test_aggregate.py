@@ -1038,6 +1038,12 @@ def test_readme_shows_the_default_label_as_sail_the_replaced_default_and_their_s
         "| SAIL in the paper (1M frames, -v2 envs) | 309.5 ± 3.0 | 3302.1 ± 14.2 |",
     ]
     assert "`sail, replaced default`: SAIL with the defaults that the trusted default replaced" in text
+    assert (  # what the rows under SAIL and DAC are, said once
+        "Rows `<method>: best policy`, the policy each run kept by the SAIL authors' rule (the best mean return of "
+        "its last 100 training episodes), evaluated on 50 episodes, mean ± std over the seeds that kept one; "
+        "`<method>: fall share`, of the evaluations after a run first passed its teacher, those below the "
+        "teacher's return, pooled over seeds."
+    ) in text
     commands = [line for line in text.splitlines() if line.startswith("python ")]
     common = "collector.total_frames=5000 threads=1 eval.episodes=10 eval.every_frames=1000"
     assert commands == [
@@ -1056,8 +1062,10 @@ def test_readme_shows_the_default_label_as_sail_the_replaced_default_and_their_s
     assert "| Hopper-v4 | paper (150.0) | 200.0 (0), 160.0 (1) | 100.0 (0) | 2/2 | 0/1 |" in docs.read_text()
     # without a default label of its own, the teacher's SAIL runs are sail's, as before
     run_aggregate([root / "main"], tmp_path / "report_main", write_into=[(readme, "campaign-readme")])
-    rows_ = [line for line in readme.read_text().splitlines() if line.startswith("| sail")]
+    text = readme.read_text()
+    rows_ = [line for line in text.splitlines() if line.startswith("| sail")]
     assert rows_ == ["| sail | 300.0 (1 seed) | 160.0 (1 seed) |", "| sail: fall share | 0.0% (0/4) | 33.3% (1/3) |"]
+    assert "Rows `<method>: fall share`, of the evaluations" in text and "best policy`" not in text
 
 
 def test_changed_settings_are_the_overrides_from_what_the_method_composes_now():
