@@ -43,8 +43,6 @@ SETTINGS = {
     "ln": {**CANDIDATE, "network.critic_layer_norm": True, "teacher.eviction": "topk"},
     "fifo": {**CANDIDATE, "network.critic_layer_norm": False, "teacher.eviction": "fifo"},
 }
-# a key an average-stage run's config lacks (it predates the key) was at this value
-BEFORE_THE_KEY = {"network.critic_layer_norm": False}
 
 
 def setting_of(label: str) -> tuple[str, str] | None:
@@ -61,8 +59,7 @@ def setting_of(label: str) -> tuple[str, str] | None:
 def checked(run, setting: str) -> list[tuple[int, float]]:
     """The target actor's evaluations of ``run``, after checking its setting and that they can be read."""
     for key, expected in {**SETTINGS[setting], **EVALUATIONS}.items():
-        value = config_value(run.config, key)
-        value = BEFORE_THE_KEY.get(key) if value is None and key in BEFORE_THE_KEY else value
+        value = config_value(run.config, key)  # an older run's at what it ran with (trusted_rule.BEFORE_THE_KEY)
         if value != expected:
             raise ValueError(
                 f"{run.folder}: counted as a {setting} run, but its config has {key}={value!r} "

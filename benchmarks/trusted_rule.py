@@ -36,7 +36,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from aggregate import HEADLINE_EVALS, find_run_folders, listed, load_run  # noqa: E402
+from aggregate import HEADLINE_EVALS, examples_module, find_run_folders, listed, load_run  # noqa: E402
 
 from torchrl_sail.harness import fall_share, read_scalar, write_atomic  # noqa: E402
 
@@ -58,7 +58,8 @@ SETTINGS = {
 EVALUATIONS = {"eval.episodes": 10, "eval.every_frames": 10_000}  # every setting's
 # the most evaluations a run's fall share counts: every one after its first (the earliest it can pass)
 MAX_COUNTED = FRAMES // EVALUATIONS["eval.every_frames"] - 1
-BEFORE_THE_KEY = {"optim.actor_preactivation_coef": 0.0, "eval.actor": "online", "eval.other_actor": False}
+# what a run ran with at a setting its config lacks (its version predates the setting)
+BEFORE_THE_KEY = examples_module("config_schema").SAVED_BEFORE
 
 
 @dataclass
