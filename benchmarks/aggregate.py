@@ -1187,7 +1187,8 @@ COMMAND_KEYS = ("collector.total_frames", "eval.episodes", "eval.every_frames", 
 
 def examples_module(name: str):
     """``examples/<name>.py`` as a module (``config_schema``: the scripts' typed config)."""
-    script_of("sail")  # puts examples/ on sys.path
+    if str(REPO / "examples") not in sys.path:
+        sys.path.insert(0, str(REPO / "examples"))
     return importlib.import_module(name)
 
 
