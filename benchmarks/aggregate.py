@@ -89,7 +89,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import copy
 import csv
 import dataclasses
 import functools
@@ -1209,22 +1208,6 @@ def defaults_of(method: str, env: str) -> dict | None:
         return OmegaConf.to_container(config, resolve=True, enum_to_str=True)
 
 
-def ran_with(config: dict) -> dict:
-    """A run's saved config with each setting of ``config_schema.SAVED_BEFORE`` that its version did
-    not have at the value it ran with (a copy)."""
-    completed = copy.deepcopy(config)
-    for key, value in examples_module("config_schema").SAVED_BEFORE.items():
-        *sections, name = key.split(".")
-        node = completed
-        for section in sections:
-            node = node.setdefault(section, {})
-            if not isinstance(node, dict):  # a section the run has switched off (None)
-                break
-        else:
-            node.setdefault(name, value)
-    return completed
-
-
 def override_value(value) -> str:
     """A config value as a Hydra override writes it: ``true``, ``null``, ``[400,300]``, ``{a:1}``, ``0.001``."""
     if isinstance(value, bool):
@@ -1240,7 +1223,7 @@ def override_value(value) -> str:
 
 def changed_settings(run: Run) -> list[str]:
     """The overrides that turn what ``algo=<method> env=<env>`` composes now into what the run ran with
-    (:func:`ran_with`): ``key=value`` for each setting that differs, in key order, a section switched
+    (``config_schema.with_saved_before``): ``key=value`` for each setting that differs, in key order, a section switched
     on or off and ``env.kwargs`` as whole values (``harness.config_changes``). Not compared:
     :data:`COMMAND_KEYS` and another learner's section (:data:`LEARNER_SECTIONS`)."""
     config = run.config
@@ -1249,7 +1232,7 @@ def changed_settings(run: Run) -> list[str]:
         return []
     learner = (config.get("algo") or {}).get("learner") or defaults["algo"]["learner"]
     skipped = (*COMMAND_KEYS, *(f"algo.{name}." for name in LEARNER_SECTIONS if name != learner))
-    changes = config_changes(ran_with(config), defaults)
+    changes = config_changes(examples_module("config_schema").with_saved_before(config), defaults)
     return [f"{key}={override_value(ran)}" for key, (ran, _) in changes.items() if not f"{key}.".startswith(skipped)]
 
 

@@ -16,6 +16,7 @@ machine lacks. :data:`SCRIPTS` names the script that trains each ``algo.learner`
 
 from __future__ import annotations
 
+import copy
 import importlib.util
 import math
 from collections.abc import Iterable
@@ -537,16 +538,29 @@ SAVED_BEFORE = {
 }
 
 
+def with_saved_before(saved: dict) -> dict:
+    """A copy of a run's saved config (a plain nested dict) with each setting of :data:`SAVED_BEFORE`
+    that its version did not have at the value it ran with (not under a section it switched off)."""
+    completed = copy.deepcopy(saved)
+    for key, value in SAVED_BEFORE.items():
+        *sections, name = key.split(".")
+        node = completed
+        for section in sections:
+            node = node.setdefault(section, {})
+            if not isinstance(node, dict):
+                break
+        else:
+            node.setdefault(name, value)
+    return completed
+
+
 def saved_run_config(saved: DictConfig) -> DictConfig:
     """A run's saved ``config.yaml`` over the schema's defaults: each setting its version did not have
-    takes the value it ran with, :data:`SAVED_BEFORE`'s where recorded, else the schema's default; keys
-    removed since are kept, unread. ``saved`` is left as it is."""
-    defaults, saved = OmegaConf.structured(SAILConfig), saved.copy()
+    takes the value it ran with, :data:`SAVED_BEFORE`'s where recorded (:func:`with_saved_before`), else
+    the schema's default; keys removed since are kept, unread."""
+    defaults = OmegaConf.structured(SAILConfig)
     OmegaConf.set_struct(defaults, False)
-    for key, value in SAVED_BEFORE.items():
-        if OmegaConf.select(saved, key, default="absent") == "absent":
-            OmegaConf.update(saved, key, value)
-    return OmegaConf.merge(defaults, saved)
+    return OmegaConf.merge(defaults, with_saved_before(OmegaConf.to_container(saved)))
 
 
 # ----------------------------------------------------------------------------- scripts
