@@ -137,6 +137,10 @@ class FrameCadence:
     def __call__(self, before: int, frames: int, data) -> int:
         return crossings(self.every_frames, self.start, before, frames) * self.steps
 
+    def began_at(self, before: int, data) -> int:
+        """The frame count a block's schedules read: the frames before the collector batch."""
+        return before
+
 
 class EpisodeCadence:
     """After each finished episode, ``steps_per_frame`` steps per frame of that episode, for the
@@ -148,11 +152,24 @@ class EpisodeCadence:
         self.steps_per_frame, self.start = steps_per_frame, start
 
     def __call__(self, before: int, frames: int, data) -> int:
+        _, lengths = self._counted(before, data)
+        return round(self.steps_per_frame * int(lengths.sum()))
+
+    def began_at(self, before: int, data) -> int:
+        """The frame count a block's schedules read: the frames before the first counted episode
+        began (the release sets the actor's learning rate before each episode's rollout)."""
+        ended_at, lengths = self._counted(before, data)
+        return int((ended_at - lengths).min()) if len(ended_at) else before
+
+    def _counted(self, before: int, data) -> tuple[torch.Tensor, torch.Tensor]:
+        """The frame count at the last step, and the length, of each episode that ended in ``data``
+        from ``start`` on."""
         flat = data.reshape(-1)
         done = flat["next", "done"].reshape(-1)
-        ended_at = before + 1 + done.nonzero().reshape(-1)  # the frame count at each episode's last step
+        ended_at = before + 1 + done.nonzero().reshape(-1)
         lengths = flat["step_count"].reshape(-1)[done] + 1
-        return round(self.steps_per_frame * int(lengths[ended_at >= self.start].sum()))
+        counted = ended_at >= self.start
+        return ended_at[counted], lengths[counted]
 
 
 def make_cadence(cfg: DictConfig, *, every_frames: int, steps: int):
@@ -289,7 +306,8 @@ class TD3Block:
             gradient step before the actor starts (Kostrikov et al.'s release moves the critic's
             target from the first step on; the actor's, its actor unchanged, stays where it is).
         reward_tag: the metric that logs the block's mean reward.
-        lr_decay: an :class:`ActorLRDecay`, run before each block (``None``: a constant rate).
+        lr_decay: an :class:`ActorLRDecay`, run before each block at the cadence's ``began_at``
+            frame count (``None``: a constant rate).
         drift: an :class:`~utils.ActorDrift` measured over each block (``None`` for SAC).
         saturation: ``saturation(batch) -> metrics`` on the block's last batch while it holds agent rows.
         gradient_steps: the steps done before (a resumed run's).
@@ -326,7 +344,7 @@ class TD3Block:
         if not num_updates:
             return {}
         alpha = self.alpha_scheduler.alpha
-        metrics = self.lr_decay(before) if self.lr_decay is not None else {}
+        metrics = self.lr_decay(self.cadence.began_at(before, data)) if self.lr_decay is not None else {}
         if self.prioritized:
             batches, drawn = self._prioritized(num_updates), []
         else:

@@ -166,6 +166,20 @@ def test_episode_cadence_trains_per_frame_of_each_episode_that_ended_after_its_s
     assert loop.EpisodeCadence(steps_per_frame=1.0, start=0)(1000, 1005, collected(num_envs=1, steps=5)) == 0
 
 
+def test_each_cadence_names_the_frame_count_its_blocks_schedules_read():
+    # the episodes above: 2 steps from frame 1000 to 1002, 3 steps from 1002 to 1005
+    data = collected(num_envs=1, steps=5, done_at=[(0, 1), (0, 4)])
+    data["step_count"] = torch.tensor([[0, 1, 0, 1, 2]]).unsqueeze(-1)
+    assert loop.EpisodeCadence(steps_per_frame=1.0, start=1000).began_at(1000, data) == 1000
+    assert loop.EpisodeCadence(steps_per_frame=1.0, start=1003).began_at(1000, data) == 1002  # the 2nd only
+    # an episode that began in an earlier batch: ended at frame 1002 after 40 steps, so it began at 962
+    data["step_count"] = torch.tensor([[38, 39, 0, 1, 2]]).unsqueeze(-1)
+    assert loop.EpisodeCadence(steps_per_frame=1.0, start=0).began_at(1000, data) == 962
+    no_end = collected(num_envs=1, steps=5)
+    assert loop.EpisodeCadence(steps_per_frame=1.0, start=0).began_at(1000, no_end) == 1000
+    assert loop.FrameCadence(every_frames=1000, steps=50, start=0).began_at(1500, data) == 1500
+
+
 def test_learning_blocks_in_either_order_and_no_d_block_without_a_discriminator():
     cfg = SimpleNamespace(
         algo=SimpleNamespace(reward=SimpleNamespace(source="discriminator")),
@@ -295,6 +309,15 @@ def test_td3_block_decays_the_lr_and_measures_saturation_on_agent_rows_only():
     assert seen == [2500] and metrics["sail/actor_lr"] == 1.0 and "actor/saturation" in metrics
     block.alpha_scheduler.alpha = 1.0  # a teacher-only batch
     assert "actor/saturation" not in block(3500, 4000, None)
+    # on the episode cadence, the frame count before the episode trained on began (the release's
+    # decay, set before each rollout): a 600-step episode ending at frame 100_300 began at 99_700
+    data = collected(num_envs=1, steps=500, done_at=[(0, 299)])
+    data["step_count"] = torch.cat([torch.arange(300, 600), torch.arange(200)]).reshape(1, 500, 1)
+    episodes = loop.EpisodeCadence(steps_per_frame=1.0, start=0)
+    seen.clear()
+    block, _, steps = td3_block(cadence=episodes, lr_decay=lambda frames: seen.append(frames) or {})
+    block(100_000, 100_500, data)
+    assert seen == [99_700] and len(steps) == 600
 
 
 def test_td3_block_draws_each_prioritized_batch_after_the_step_before_set_its_priorities():
