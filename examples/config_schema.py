@@ -120,6 +120,7 @@ class RNDConfig:
     coef: float = 1.0  # r = -log(1 - D) + coef * bonus (bonus / its running std, clipped at 5); ours
     lr: float = 1.0e-4  # the predictor's Adam (RND's value)
     cells: list[int] = field(default_factory=lambda: [256, 256])  # target and predictor MLPs
+    activation: Activation = Activation.relu  # of their hidden layers (RND's, and the SAIL authors' dormant code)
     features: int = 64
 
 
@@ -528,6 +529,7 @@ SAVED_BEFORE = {
     "eval.actor": "online",
     "eval.other_actor": False,
     "optim.actor_preactivation_coef": 0.0,
+    "algo.rnd.activation": "tanh",
     "optim.cadence": "frames",
     "optim.block_order": "td3_first",
     "optim.start_frames": None,
@@ -540,13 +542,19 @@ SAVED_BEFORE = {
 
 def with_saved_before(saved: dict) -> dict:
     """A copy of a run's saved config (a plain nested dict) with each setting of :data:`SAVED_BEFORE`
-    that its version did not have at the value it ran with (not under a section it switched off)."""
+    that its version did not have at the value it ran with, unless it lies under a section the run
+    switched off (``null``), or under an optional section (null by default, as ``algo.rnd``) that
+    its version did not have."""
+    schema = OmegaConf.to_container(OmegaConf.structured(SAILConfig))
     completed = copy.deepcopy(saved)
     for key, value in SAVED_BEFORE.items():
         *sections, name = key.split(".")
-        node = completed
+        node, default = completed, schema
         for section in sections:
-            node = node.setdefault(section, {})
+            default = default.get(section) if isinstance(default, dict) else None
+            if section not in node and isinstance(default, dict):
+                node[section] = {}  # a section every run has: its settings all predate the run
+            node = node.get(section)
             if not isinstance(node, dict):
                 break
         else:

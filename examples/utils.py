@@ -544,7 +544,13 @@ def make_rnd(cfg: DictConfig, env) -> tuple[RNDReward | None, RNDLoss | None]:
     r, obs_dim = cfg.algo.rnd, env.observation_spec["observation"].shape[-1]
 
     def net():
-        return MLP(in_features=obs_dim, out_features=r.features, num_cells=list(r.cells), device=cfg.device)
+        return MLP(
+            in_features=obs_dim,
+            out_features=r.features,
+            num_cells=list(r.cells),
+            activation_class=_ACTIVATIONS[r.activation],
+            device=cfg.device,
+        )
 
     rnd = RNDReward(net(), net(), coef=r.coef, row_id_key="row_id")  # once per distinct row of a block
     env.append_transform(rnd)

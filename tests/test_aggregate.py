@@ -78,8 +78,13 @@ def saved_by_this_version(config: dict) -> dict:
         *sections, name = key.split(".")
         source, target = defaults, config
         for section in sections:
-            source, target = source[section], target.setdefault(section, {})
-        target.setdefault(name, source[name])
+            source = source[section]
+            if source is None:  # a section the method switches off (algo.rnd): the run saves null
+                target.setdefault(section, None)
+                break
+            target = target.setdefault(section, {})
+        else:
+            target.setdefault(name, source[name])
     return config
 
 
@@ -1113,6 +1118,12 @@ def test_changed_settings_are_the_overrides_from_what_the_method_composes_now():
         "optim.cadence=frames",
         "optim.start_frames=null",
     ]
+    # an RND run from before algo.rnd.activation: its networks were tanh (TorchRL MLP's default)
+    rnd = run("sail_rnd", algo={"name": "sail_rnd"})
+    rnd.config = {"env": {"name": "Hopper-v4"}, "algo": {"name": "sail_rnd", "rnd": {"coef": 1.0}}}
+    assert "algo.rnd.activation=tanh" in aggregate.changed_settings(rnd)
+    rnd.config["algo"]["rnd"]["activation"] = "relu"
+    assert not any(s.startswith("algo.rnd") for s in aggregate.changed_settings(rnd))
     unknown_env = run("sail", optim={"lr": 0.5})
     unknown_env.env = "NoSuchEnv-v0"
     assert aggregate.changed_settings(unknown_env) == []  # nothing to compare with

@@ -582,6 +582,23 @@ def test_actor_preactivation_coef_reaches_the_loss():
     assert loss.preactivation_coef == 0.001 and loss.preactivation_key == "param"
 
 
+@pytest.mark.parametrize("overrides, activation", [((), "ReLU"), (("algo.rnd.activation=tanh",), "Tanh")])
+def test_rnd_networks_take_their_activation(overrides, activation):
+    """RND's target and predictor: ReLU hidden layers (RND's and the SAIL authors' dormant code), tanh on
+    request (what RND runs saved before the setting ran with)."""
+    from utils import make_rnd
+
+    from torchrl_sail import make_sail_env
+
+    cfg = make("algo=sail_rnd", *overrides)
+    check_config(cfg)
+    rnd, _ = make_rnd(cfg, make_sail_env("Pendulum-v1", max_episode_steps=200))
+    for net in (rnd.target_network, rnd.predictor_network):
+        layers = [type(layer).__name__ for layer in net]
+        assert layers == ["Linear", activation, "Linear", activation, "Linear"], layers
+        assert [layer.out_features for layer in net if type(layer).__name__ == "Linear"] == [256, 256, 64]
+
+
 def test_critic_layer_norm_puts_a_layer_norm_after_each_hidden_layer_of_the_critic_alone():
     """RLPD's critic: Linear -> LayerNorm -> ReLU per hidden layer; the actor is unchanged, and the
     fused TD3 step takes the norm (checked equal to the loss's own step in test_td3_update.py)."""
