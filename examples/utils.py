@@ -212,7 +212,7 @@ def make_teacher(cfg: DictConfig, env, absorbing: AbsorbingStateTransform | None
         writer = FIFOTrajectoryWriter(k=t.k, capacity=t.capacity, keys=keys)
     elif t.eviction == "union":  # the paper's R_T <- R_T U tau: room for the demonstrations and every frame
         writer = UnionTrajectoryWriter(k=t.k, capacity=demos.numel() + cfg.collector.total_frames, keys=keys)
-    else:  # the paper's K best trajectories (+ 1 row: a terminated episode's absorbing transition)
+    else:  # the K best trajectories, the paper's window as the buffer (+ 1 row: an absorbing transition)
         writer = TopKTrajectoryWriter(
             k=t.k, max_trajectory_length=cfg.env.max_episode_steps + (absorbing is not None), keys=keys
         )

@@ -12,7 +12,7 @@ an admitted trajectory goes: :class:`TopKTrajectoryWriter` (keep the K best traj
 default), :class:`UnionTrajectoryWriter` (the paper's literal ``R_T <- R_T U tau``: keep every
 admitted trajectory) and :class:`FIFOTrajectoryWriter` (the authors' code: a ring of transitions).
 :class:`TeacherReplayBuffer` is a :class:`~torchrl.data.TensorDictReplayBuffer` built around
-one of them, and :class:`TopKTeacherReplayBuffer` the paper's buffer in one call (as TorchRL's
+one of them, and :class:`TopKTeacherReplayBuffer` the default buffer in one call (as TorchRL's
 ``TensorDictPrioritizedReplayBuffer`` builds its sampler). (``TensorDictMaxValueWriter`` ranks
 one storage slot at a time: it cannot hold variable-length trajectories in a transition storage
 nor express the window rule.)
@@ -291,7 +291,7 @@ class TrajectoryWriter(Writer):
 
 
 class TopKTrajectoryWriter(TrajectoryWriter):
-    """The paper's teacher buffer: the ``K`` best trajectories seen, demonstrations included.
+    """The teacher buffer as the paper's top-K window: the ``K`` best trajectories seen, demonstrations included.
 
     ``W_k`` is the set of rewards of the stored trajectories. Each trajectory gets a slot of
     ``max_trajectory_length`` rows; when all ``K`` slots are taken, an admitted trajectory
