@@ -7,7 +7,7 @@ rewards admitted so far, so ``C`` only rises and the teacher data keeps improvin
 
 As in TorchRL's :class:`~torchrl.data.TensorDictMaxValueWriter`, the ranking rule lives in a
 :class:`~torchrl.data.replay_buffers.writers.Writer`: :class:`TrajectoryWriter` splits what
-it is given into trajectories and applies the promotion test, and two writers decide where
+it is given into trajectories and applies the promotion test, and three writers decide where
 an admitted trajectory goes: :class:`TopKTrajectoryWriter` (keep the K best trajectories, the
 default), :class:`UnionTrajectoryWriter` (the paper's literal ``R_T <- R_T U tau``: keep every
 admitted trajectory) and :class:`FIFOTrajectoryWriter` (the authors' code: a ring of transitions).
@@ -508,7 +508,8 @@ class TeacherReplayBuffer(TensorDictReplayBuffer):
         return self._writer.num_transitions
 
     def add_demonstrations(self, demonstrations: TensorDictBase) -> int:
-        """Seeds the buffer with whole episodes, admitted without the test; see the writer's."""
+        """Seeds the buffer with whole episodes, admitted without the test, after the buffer's
+        transform's ``inv`` as :meth:`extend` does; see the writer's."""
         if self._transform is not None and len(self._transform):
             demonstrations = self._transform.inv(demonstrations)
         with self._replay_lock, self._write_lock:

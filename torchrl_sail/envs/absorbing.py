@@ -73,7 +73,8 @@ class AbsorbingStateTransform(Transform):
 
     Keyword Args:
         observation_key (NestedKey, optional): the observation. Defaults to ``"observation"``.
-        action_key (NestedKey, optional): the action, zeroed in absorbing transitions.
+        action_key (NestedKey, optional): the action, zero in absorbing transitions (drawn from
+            ``action_spec`` when it is given).
             Defaults to ``"action"``.
         reward_key (NestedKey, optional): the reward under ``"next"``, zeroed in absorbing
             transitions. Defaults to ``"reward"``.
@@ -177,9 +178,13 @@ class AbsorbingStateTransform(Transform):
             tensordict (TensorDictBase): flat ``[N]`` transitions whose observations carry the
                 indicator (the output of an env with this transform).
 
+        Reads ``("next", "terminated")``, and ``("next", "done")`` and ``("next", "truncated")``
+        where a row terminated (these names, not configurable).
+
         Returns:
             a new ``[N + number of terminations]`` tensordict, in the input's order with each
-            absorbing transition right after its terminal transition (the input is untouched).
+            absorbing transition right after its terminal transition (the input is untouched),
+            or the input itself when no row terminated.
         """
         terminated = tensordict.get(("next", "terminated")).reshape(-1)
         ends = terminated.nonzero().squeeze(-1)

@@ -30,9 +30,8 @@ _STEPS = "steps_to_next_obs"
 class NStepTransform(MultiStepTransform):
     """Writes the n-step transition of every step under ``out_key``, beside the 1-step ``"next"``.
 
-    For a step ``t`` whose episode goes on for at least ``n_steps`` more steps, and ``k``
-    the number of steps to the window's end (``n_steps``, or fewer when the episode ends
-    inside the window, at its ``done_key``):
+    For every step ``t``, with ``k`` the number of steps to the window's end (``n_steps``, or
+    fewer when the episode ends inside the window, at its ``done_key``):
 
     - ``(out_key, reward_key)``: ``sum_{i<k} gamma^i r_{t+i}``, the discounted rewards of the
       window (never of the next episode);

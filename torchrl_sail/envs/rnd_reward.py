@@ -28,8 +28,8 @@ class RNDReward(RNDTransform):
     ``out_key`` (``"intrinsic_reward"``). Keep it in the env that collects the agent's data:
     the statistics follow what the agent visits.
 
-    .. note:: ``env.append_transform(rnd)`` leaves the transform in eval mode, where the
-        statistics are not updated: call ``rnd.train()`` afterwards.
+    .. note:: ``TransformedEnv(env, rnd)`` and ``env.append_transform(rnd)`` leave the transform
+        in eval mode, where the statistics are not updated: call ``rnd.train()`` afterwards.
 
     **Replay buffer** (:meth:`forward`): the bonus of the *current* predictor on the sampled
     ``("next", in_key)``, normalised with the statistics as they are (never updated here),
@@ -62,7 +62,8 @@ class RNDReward(RNDTransform):
         >>> from torchrl.envs import GymEnv, TransformedEnv
         >>> from torchrl_sail import RNDReward
         >>> rnd = RNDReward(nn.Linear(3, 8), nn.Linear(3, 8), coef=0.5)
-        >>> env = TransformedEnv(GymEnv("Pendulum-v1"), rnd)  # keeps the running statistics
+        >>> env = TransformedEnv(GymEnv("Pendulum-v1"), rnd)
+        >>> _ = rnd.train()  # the env keeps the running statistics from here on
         >>> rollout = env.rollout(5)
         >>> batch = rollout.select("observation", ("next", "observation"), ("next", "reward")).clone()
         >>> out = rnd(batch.clone())  # sample time: reward + 0.5 * bonus of the current predictor

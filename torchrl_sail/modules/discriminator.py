@@ -158,8 +158,8 @@ class DiscriminatorNet(nn.Module):
 
     Following the authors' ``tf.contrib.layers.fully_connected`` defaults, every linear
     layer is re-initialised with Glorot/Xavier-uniform weights and zero biases
-    (:meth:`reset_parameters`; ``init="orthogonal"``: orthogonal weights, as Kostrikov et al.'s
-    DAC release); this replaces PyTorch's default Kaiming-uniform init.
+    (:meth:`reset_parameters`; ``init="orthogonal"``: orthogonal weights and zero biases, as
+    Kostrikov et al.'s DAC release; ``init="torch"`` keeps ``nn.Linear``'s own init).
 
     :meth:`forward` never updates the normaliser: only
     :class:`~torchrl_sail.DiscriminatorLoss` does, explicitly. The forward is therefore
@@ -238,7 +238,8 @@ class DiscriminatorNet(nn.Module):
         return [layer.parametrizations.weight for layer in self._linears() if hasattr(layer, "parametrizations")]
 
     def reset_parameters(self) -> None:
-        """Re-initialises the MLP with ``init``'s weights (Glorot-uniform: the authors') and zero biases.
+        """Re-initialises the MLP by ``init``: Glorot-uniform (the authors') or orthogonal weights with zero
+        biases, or ``nn.Linear``'s own init (``"torch"``).
 
         With ``spectral_norm``, the normalisation is registered again on the new weights (the
         same parameters), with singular vectors estimated afresh (15 power iterations). The

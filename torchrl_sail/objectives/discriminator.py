@@ -121,7 +121,8 @@ class DiscriminatorLoss(LossModule):
     (mean logits: how far past saturation D is, and the mean of the logit reward
     ``log D - log(1 - D)``) and ``logit_teacher_std`` / ``logit_agent_std`` (their spread: how
     much the logit reward tells one row from another), all on the clean features (``entropy``
-    is the loss term's, on the noisy ones).
+    is the loss term's, on the noisy ones). A batch without a teacher row or without an agent
+    row raises a ``ValueError`` that gives both counts.
 
     This class is compatible with non-tensordict based modules too: the entries can
     be passed as keyword arguments named after :attr:`in_keys` and the outputs come
@@ -241,7 +242,7 @@ class DiscriminatorLoss(LossModule):
         return self.discriminator.module
 
     def reset_parameters_recursive(self) -> None:
-        """Re-initialises the discriminator weights (Glorot-uniform, zero biases).
+        """Re-initialises the discriminator's layers by its net's ``init`` (``DiscriminatorNet.reset_parameters``).
 
         The base implementation only visits networks converted to functional
         parameters; the discriminator is a plain submodule here, and resetting its

@@ -51,7 +51,7 @@ class SAILLoss(TD3Loss):
     - ``"weights"`` (Algorithm 1): the batch holds teacher and agent rows in any proportion
       (``N + N`` in the paper), tagged by the bool entry ``"is_teacher"``, and each group is
       averaged on its own: teacher rows weigh ``alpha / N_teacher``, agent rows
-      ``(1 - alpha) / N_agent``. Weights are scaled to average 1 over the valid rows, so
+      ``(1 - alpha) / N_agent``. With valid rows in both groups the weights average 1, so
       ``reduction="sum"`` is ``B`` times the objective and ``"none"`` returns weighted
       per-row terms. A group with no (valid) row contributes nothing. Prioritized-replay
       weights, when present, are normalised within each group; rows removed by the loss
@@ -87,8 +87,8 @@ class SAILLoss(TD3Loss):
             ``"count"`` (prioritized replay as Schaul et al. 2016 and DDPGfD's public code
             step), the number of rows, ``mean_i(w_i l_i)``, so weights normalised to at most 1
             also shrink the step by their batch mean. Either way ``"sum"`` and ``"none"``
-            reductions are unchanged, and with ``mixing="weights"``, whose weights average 1,
-            the two agree. Defaults to ``"sum"``.
+            reductions are unchanged, and with ``mixing="weights"`` on a batch with rows of both
+            groups (whose weights then average 1), the two agree. Defaults to ``"sum"``.
         **kwargs: the other :class:`~torchrl.objectives.TD3Loss` keyword arguments
             (``action_spec`` or ``bounds``, ``num_qvalue_nets``, ``policy_noise``,
             ``noise_clip``, ``delay_actor``, ``delay_qvalue``, ``separate_losses``,

@@ -585,7 +585,8 @@ class TD3Update:
             update_actor (bool): also run the actor step and the target update.
 
         Returns:
-            ``{"loss_qvalue", "q_mean"}`` and, on actor steps, ``"loss_actor"`` (and
+            ``{"loss_qvalue", "q_mean"}`` (and ``"loss_qvalue_nstep"`` with ``nstep_key``) and, on
+            actor steps, ``"loss_actor"`` (and
             ``"preactivation_penalty"`` with a :class:`~torchrl_sail.SAILLoss` whose
             ``preactivation_coef`` is > 0): detached scalar tensors (no host synchronisation).
         """
