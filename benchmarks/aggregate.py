@@ -183,6 +183,7 @@ OPERATIONAL_RESUME_KEYS = (
     "collector.num_workers",
     "collector.backend",
     "collector.backend_options",
+    "collector.weight_sync_timeout_s",
     "threads",
     "flush_denormal",
     "device",

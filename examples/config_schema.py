@@ -254,6 +254,9 @@ class CollectorConfig:
     # forwarded to TorchRL's Collector(backend_options=...) as it is (a mapping or null), e.g. for
     # ray: {ray_init_config: {address: auto}, remote_configs: {num_cpus: 1, num_gpus: 0}}
     backend_options: Any = None
+    # ray: how long the learner waits for its actors to join TorchRL's weight-sync group (TorchRL's own
+    # 60 s includes Ray starting a worker that imports torch: not enough on a loaded machine)
+    weight_sync_timeout_s: float = 300.0
 
 
 @dataclass
@@ -697,6 +700,12 @@ def _check_collector_backend(cfg: DictConfig) -> None:
                 c.backend_options,
                 c.backend_options is None or isinstance(c.backend_options, DictConfig),
                 "must be a mapping (forwarded to TorchRL's Collector) or null",
+            ),
+            (
+                "collector.weight_sync_timeout_s",
+                c.weight_sync_timeout_s,
+                0 < c.weight_sync_timeout_s < math.inf,
+                "must be a finite number > 0",
             ),
         ]
     )

@@ -56,6 +56,7 @@ from torchrl_sail import (
     make_sail_env,
     observation_normalizer,
 )
+from torchrl_sail._compat import set_ray_weight_sync_timeout
 from torchrl_sail.data import keep_columns, parse_columns, unreproduced_columns
 from torchrl_sail.data.columns import column_ranges
 from torchrl_sail.data.paper_teachers import teacher_env
@@ -148,9 +149,10 @@ def make_collector(cfg: DictConfig, env, policy, *, frames: int):
         # with one shared seed, all workers would replay the same episodes.
         collector.set_seed(cfg.seed + frames)
     if backend == "ray":
+        set_ray_weight_sync_timeout(cfg.collector.weight_sync_timeout_s)
         # First push now, before any batch: it connects TorchRL's RayWeightSyncScheme (a gloo
-        # group of the learner and the actors, 60 s rendezvous), so a failure stops the run
-        # before it trains. Later pushes (one per batch, in the loop) reuse the group.
+        # group of the learner and the actors), so a failure stops the run before it trains.
+        # Later pushes (one per batch, in the loop) reuse the group.
         collector.update_policy_weights_()
     return collector
 

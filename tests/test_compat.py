@@ -6,6 +6,8 @@ from __future__ import annotations
 import functools
 import importlib
 import importlib.metadata
+import inspect
+from datetime import timedelta
 from pathlib import Path
 
 import pytest
@@ -93,6 +95,18 @@ def test_env_privates():
     data = TensorDict({"_reset": torch.tensor([[True], [False]])}, [2])
     assert _compat.reset_mask("_reset", data).tolist() == [True, False]
     assert _compat.reset_mask("_reset", TensorDict({}, [3])).tolist() == [True] * 3  # absent: every entry
+
+
+def test_ray_weight_sync_timeout_is_the_one_the_scheme_reads(monkeypatch):
+    from torchrl.weight_update import _ray
+
+    assert _ray._DIST_TIMEOUT == timedelta(seconds=60)  # TorchRL's fixed value, what the setting replaces
+    monkeypatch.setattr(_ray, "_DIST_TIMEOUT", _ray._DIST_TIMEOUT)  # restored after the test
+    _compat.set_ray_weight_sync_timeout(300)
+    assert _ray._DIST_TIMEOUT == timedelta(seconds=300)
+    # the sender's TCPStore and gloo group read the module constant when they connect
+    sender = inspect.getsource(_ray.RayWeightSyncScheme._setup_distributed_connection_sender)
+    assert sender.count("_DIST_TIMEOUT") == 2
 
 
 def test_multi_step():

@@ -205,6 +205,7 @@ def test_optional_blocks_are_typed_when_set():
         (["optim.discriminator.label_smoothing=0.5"], "optim.discriminator.label_smoothing=0.5: must be in [0, 0.5)"),
         (["optim.discriminator.instance_noise=-1"], "optim.discriminator.instance_noise=-1.0: must be a finite"),
         (["optim.discriminator.max_accuracy=1.0"], "optim.discriminator.max_accuracy=1.0: must be in [0.5, 1)"),
+        (["collector.weight_sync_timeout_s=0"], "collector.weight_sync_timeout_s=0.0: must be a finite number > 0"),
     ],
 )
 def test_check_config_keeps_ranges_and_cross_field_rules(overrides, message):

@@ -23,6 +23,8 @@ Reads of TorchRL internals (functions below):
 - ``torchrl.envs.transforms.utils._get_reset`` (:func:`reset_mask`);
 - ``torchrl.data.postprocs.postprocs._multi_step_func`` (:func:`multi_step`);
 - ``GymLikeEnv._env``, the wrapped gymnasium env, for its ``metadata`` (:func:`render_fps`);
+- ``torchrl.weight_update._ray._DIST_TIMEOUT``, the Ray weight-sync group's fixed 60 s timeout, which
+  the learner's side is given another value through (:func:`set_ray_weight_sync_timeout`);
 - torch's ``nn.modules.dropout._DropoutNd`` (:data:`DropoutLayer`) and
   ``torch.ops.mkldnn._is_mkldnn_bf16_supported`` (:func:`native_bf16_matmul`). ``TD3Update`` also
   calls ``torch._foreach_lerp_`` directly: torch's foreach kernels have no public alias.
@@ -38,6 +40,7 @@ Hooks this package's subclasses override or call on ``self``/``super()`` (inheri
 from __future__ import annotations
 
 import functools
+from datetime import timedelta
 
 import tensordict
 import torch
@@ -62,6 +65,7 @@ __all__ = [
     "reduce_loss",
     "render_fps",
     "reset_mask",
+    "set_ray_weight_sync_timeout",
     "soft_update_pairs",
     "storage_tensordict",
     "tanh_bounds",
@@ -235,6 +239,23 @@ def render_fps(env, default: int = 30) -> int:
     """
     base = getattr(env, "base_env", env)
     return int(base.metadata.get("render_fps", default))
+
+
+# ----------------------------------------------------------------------------- collectors
+def set_ray_weight_sync_timeout(seconds: float) -> None:
+    """Sets how long the learner waits for its Ray actors to join TorchRL's weight-sync group.
+
+    ``RayWeightSyncScheme`` builds its ``TCPStore`` and gloo group with the module constant
+    ``torchrl.weight_update._ray._DIST_TIMEOUT`` (60 s in torchrl 0.14, not a constructor argument;
+    TorchRL's ``TORCHRL_WEIGHT_SYNC_TIMEOUT`` does not reach it). That wait includes Ray starting a
+    fresh worker for the scheme's connection-info actor, which imports torch and TorchRL: on a
+    loaded machine, longer than 60 s. The learner reads the constant when it connects, so setting
+    it in the learner's process before the first weight push is enough: each actor's own 60 s
+    starts once it has found that connection info. The group keeps the timeout for every later push.
+    """
+    from torchrl.weight_update import _ray  # imported here: Ray is optional
+
+    _ray._DIST_TIMEOUT = timedelta(seconds=seconds)
 
 
 # ----------------------------------------------------------------------------- tensordict

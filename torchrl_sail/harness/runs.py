@@ -64,6 +64,7 @@ RESUME_MAY_CHANGE = (
     "collector.num_workers",
     "collector.backend",
     "collector.backend_options",
+    "collector.weight_sync_timeout_s",
     "logger",
     "eval.every_frames",
     "eval.episodes",
