@@ -10,8 +10,11 @@ import torch
 
 from torchrl_sail.data import missing_paper_teachers, paper_teachers_dir
 
-# One intra-op thread: on the 2-core CI machine, 2 threads contend with the
-# collector/env and are slower, and single-threaded math is reproducible.
+# One intra-op thread, here and in every process a test starts (the README's quickstart, Ray actors,
+# launchers; the training scripts set theirs with `threads`): on the 2-core CI machine, two threads
+# per process contend with the other xdist worker and are slower (the quickstart ~3x with the cores
+# busy), and single-threaded math is reproducible. An OMP_NUM_THREADS of your own is kept.
+os.environ.setdefault("OMP_NUM_THREADS", "1")
 torch.set_num_threads(1)
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
