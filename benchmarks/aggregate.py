@@ -1954,6 +1954,9 @@ BLOCKS = {
     "paper-comparison": Block(block_paper_comparison, draw_paper_comparison),
     "throughput-amd-epyc": throughput_block("amd_epyc_fp32_flush.json"),
     "throughput-amd-epyc-no-flush": throughput_block("throughput.json"),
+    "throughput-amd-epyc-avx512": throughput_block(
+        "amd_epyc_avx512_fp32_flush.json", "amd_epyc_avx512_bf16_flush.json"
+    ),
     "throughput-amx-xeon": throughput_block("amx_xeon_fp32_flush.json", "amx_xeon_bf16_flush.json"),
     "throughput-amx-xeon-no-flush": throughput_block("amx_xeon_fp32.json", "amx_xeon_bf16.json"),
     "throughput-cuda-h100": throughput_block(
@@ -2040,6 +2043,7 @@ DOCUMENTS = {
             for name in (
                 "throughput-amd-epyc",
                 "throughput-amd-epyc-no-flush",
+                "throughput-amd-epyc-avx512",
                 "throughput-amx-xeon",
                 "throughput-amx-xeon-no-flush",
                 "throughput-cuda-h100",
