@@ -12,9 +12,10 @@ an evaluation passed the teacher, the last-5 mean and the fall share
 (:func:`torchrl_sail.harness.fall_share`), and the best policy's evaluation, reported beside last-5
 in a table with a row per env, teacher and setting.
 After the table, where each setting's runs kept their best policy (late in the run, below their
-last-5, below their teacher). The verdict is ``pending`` until every run the rule needs is finished;
-meanwhile an interim block compares each setting with the defaults on the cells both have, and
-names the criteria of the first set that the finished runs already miss whatever the runs to come.
+last-5, below their teacher). The verdict is ``pending`` until every run that can change it is
+finished (:func:`not_awaited` names those that cannot); meanwhile an
+interim block compares each setting with the defaults on the cells both have, and names the
+criteria of the first set that the finished runs already miss whatever the runs to come.
 The decision then follows the rule's order: the candidate by the first set, then by the second;
 then the penalty alone; else the defaults stay.
 
@@ -238,25 +239,66 @@ def out_of_reach(ours: dict, setting: str) -> list[str]:
     return ["", f"Already out of reach for the {setting}, whatever its runs to come (the first set):", "", *lines]
 
 
+def cells(keys: list[tuple[str, str, int]]) -> str:
+    """The first six (env, teacher, seed) cells of ``keys``, and how many more."""
+    shown = ", ".join(f"{env} {teacher} seed {seed}" for env, teacher, seed in keys[:6])
+    return shown + (f" and {len(keys) - 6} more" if len(keys) > 6 else "")
+
+
+def unneeded(keys: list, skipped, reason: str) -> str:
+    """What of a setting's missing ``keys`` the verdict does not wait for (``skipped``), and why."""
+    if not skipped:
+        return ""
+    if len(skipped) == len(keys):
+        return f" (not needed for the verdict: {reason})"
+    return f" ({len(skipped)} not needed for the verdict, as {reason}: {cells(list(skipped))})"
+
+
+def not_awaited(
+    ours: dict, defaults: dict, missing: dict, setting: str, first_missed: bool
+) -> dict[str, tuple[list, str]]:
+    """The missing runs the verdict does not wait for, per setting, with why: none of them can change it.
+
+    DAC's runs count in the first set alone (its third criterion): not awaited once that set is missed.
+    The defaults' with the shipped Swimmer and HalfCheetah teachers count in the second set's first
+    criterion alone (the runs passing their teacher): not awaited once every run of the setting is in and
+    that criterion is decided whatever the defaults' missing runs do (the setting's passes above the most
+    the defaults can reach, or not above what they have).
+    """
+    skipped = {}
+    if first_missed and missing["dac"]:
+        skipped["dac"] = (missing["dac"], "the first set is missed")
+    counted_only = [key for key in missing["defaults"] if key[1] != "paper" and key[0] not in FALL_ENVS]
+    if counted_only and not missing[setting]:
+        passed, default_passed = sum(r.passed for r in ours.values()), sum(r.passed for r in defaults.values())
+        if passed > default_passed + len(missing["defaults"]) or passed <= default_passed:
+            skipped["defaults"] = (counted_only, "the count of runs passing is decided")
+    return skipped
+
+
 def judge(found: dict, setting: str) -> list[str]:
     """The rule on ``setting`` (``candidate`` or ``penalty``) against the defaults and DAC, as Markdown."""
     ours, defaults, dac = found[setting], found["defaults"], found["dac"]
     lines = [f"### {setting}", ""]
     missing = {name: [k for k in needed(name) if k not in found[name]] for name in (setting, "defaults", "dac")}
-    if any(missing.values()):
-        for name, keys in missing.items():
-            if keys:
-                shown = ", ".join(f"{env} {teacher} seed {seed}" for env, teacher, seed in keys[:6])
-                more = f" and {len(keys) - 6} more" if len(keys) > 6 else ""
-                lines.append(f"- {name}: {len(keys)} runs missing ({shown}{more})")
+    missed = out_of_reach(ours, setting)
+    skipped = not_awaited(ours, defaults, missing, setting, bool(missed))
+    awaited = [name for name, keys in missing.items() if set(keys) - set(skipped.get(name, ((), ""))[0])]
+    for name, keys in missing.items():
+        if keys:
+            why = unneeded(keys, *skipped.get(name, ((), "")))
+            lines.append(f"- {name}: {len(keys)} runs missing ({cells(keys)}){why}")
+    if awaited:
         return [
             *lines,
             *interim(ours, defaults, setting),
-            *out_of_reach(ours, setting),
+            *missed,
             "",
             "**Verdict: pending.**",
             "",
         ]
+    if missing["dac"]:
+        lines += missed
     passed = sum(r.passed for r in ours.values())
     default_passed = sum(r.passed for r in defaults.values())
     falls, counted = pooled_falls(ours)
@@ -277,10 +319,18 @@ def judge(found: dict, setting: str) -> list[str]:
             )
         )
     for env in ENVS:
+        if missing["dac"]:  # None: not judged
+            first.append((f"{env}: last-5 above DAC's (DAC's runs are not all in)", None))
+            continue
         mean, dac_mean = paper_mean(ours, env)[0], paper_mean(dac, env)[0]
         first.append((f"{env}: last-5 {mean:.1f} above DAC's {dac_mean:.1f}", mean > dac_mean))
     first.append((f"fall share on Hopper and Walker2d {percent(falls, counted)}, at most 5%", share <= MAX_FALL_SHARE))
-    second.append((f"runs passing: {passed} against the defaults' {default_passed}", passed > default_passed))
+    if missing["defaults"]:  # their runs not in cannot change this count (not_awaited)
+        most = default_passed + len(missing["defaults"])
+        text = f"runs passing: {passed} against the defaults' {default_passed}, at most {most} with their "
+        second.append((text + f"{runs(len(missing['defaults']))} not in", passed > most))
+    else:
+        second.append((f"runs passing: {passed} against the defaults' {default_passed}", passed > default_passed))
     for env in ENVS:
         mean, (base, std) = paper_mean(ours, env)[0], paper_mean(defaults, env)
         second.append(
@@ -296,7 +346,8 @@ def judge(found: dict, setting: str) -> list[str]:
         )
     )
     for title, criteria in (("First set", first), ("Second set", second)):
-        lines += [f"{title}:", ""] + [f"- {'met' if ok else 'MISSED'}: {text}" for text, ok in criteria] + [""]
+        marks = {True: "met", False: "MISSED", None: "not judged"}
+        lines += [f"{title}:", ""] + [f"- {marks[ok]}: {text}" for text, ok in criteria] + [""]
     met_first, met_second = all(ok for _, ok in first), all(ok for _, ok in second)
     verdict = "meets the first set" if met_first else "meets the second set" if met_second else "meets neither set"
     return [*lines, f"**Verdict: {setting} {verdict}.**", ""]
@@ -310,10 +361,10 @@ def verdict(lines: list[str]) -> str:
 
 def decision(candidate: str, penalty: str) -> str:
     """The rule's decision from the two verdicts, in the rule's order."""
-    if "pending" in (candidate, penalty):
-        return "**Decision: pending** (the verdicts wait for every run)."
-    if candidate in ("first", "second"):
+    if candidate in ("first", "second"):  # the penalty alone is judged only where the candidate meets neither
         return f"**Decision: the candidate becomes the default** (it meets the {candidate} set)."
+    if "pending" in (candidate, penalty):
+        return "**Decision: pending** (the verdicts wait for every run they need)."
     if penalty in ("first", "second"):
         return (
             f"**Decision: the penalty alone becomes the default** (it meets the {penalty} set; the candidate neither)."

@@ -138,7 +138,7 @@ def test_rule_is_pending_until_every_run_is_there(tmp_path):
     text = rule.report([tmp_path])
     assert "- candidate: 1 runs missing (Walker2d-v4 shipped seed 3)" in text
     assert text.count("**Verdict: pending.**") == 2 and "MISSED" not in text
-    assert text.endswith("**Decision: pending** (the verdicts wait for every run).")
+    assert text.endswith("**Decision: pending** (the verdicts wait for every run they need).")
     candidate, penalty = text.split("### penalty")
     # the 39 cells both have; on Hopper and Walker2d 19 of them, 4 evaluations after the pass each
     assert "on the 39 (env, teacher, seed) cells both the candidate and the defaults" in candidate
@@ -205,6 +205,73 @@ def test_decision_by_the_second_set(tmp_path):
     assert "met: fall share 25.0% (20/80), not above the defaults' 25.0% (20/80)" in candidate
     assert "**Verdict: candidate meets the second set.**" in candidate
     assert text.endswith("**Decision: the candidate becomes the default** (it meets the second set).")
+
+
+def test_dacs_runs_are_awaited_only_while_the_first_set_can_be_met(tmp_path):
+    """DAC's seeds 3-4 missing: the candidate that can still meet the first set (no fall) waits for them;
+    one whose falls put the first set out of reach is judged by the second set without them."""
+    import shutil
+
+    def without_dac_seeds_3_4(root):
+        for env in rule.ENVS:
+            for seed in (3, 4):
+                shutil.rmtree(root / "trusted" / "paper" / env / "dac" / f"seed{seed}")
+
+    full_set(tmp_path / "a")
+    without_dac_seeds_3_4(tmp_path / "a")
+    candidate, penalty = rule.report([tmp_path / "a"]).split("### penalty")
+    assert "- dac: 8 runs missing (Hopper-v4 paper seed 3, Hopper-v4 paper seed 4," in candidate
+    assert "not needed for the verdict" not in candidate and "**Verdict: pending.**" in candidate
+    # the penalty alone falls 20 times in 80 evaluations: its first set is missed, and DAC's runs are not needed
+    assert "and 2 more) (not needed for the verdict: the first set is missed)" in penalty
+    assert "**Verdict: penalty meets neither set.**" in penalty  # 40 passes against the defaults' 40
+
+    # the candidate falls as the defaults do (25%); the defaults never pass the shipped Swimmer teacher
+    full_set(
+        tmp_path / "b",
+        candidate={key: DEFAULT_RETURNS for key in every()},
+        defaults={key: [50] * 6 for key in every("Swimmer-v4", "shipped")},
+    )
+    without_dac_seeds_3_4(tmp_path / "b")
+    text = rule.report([tmp_path / "b"])
+    candidate = text.split("### penalty")[0]
+    assert "fall share on Hopper and Walker2d at most 5%: missed, as it is 25.0% (20/80) over its finished runs" in (
+        candidate
+    )
+    assert "- not judged: Hopper-v4: last-5 above DAC's (DAC's runs are not all in)" in candidate
+    assert "MISSED: fall share on Hopper and Walker2d 25.0% (20/80), at most 5%" in candidate
+    assert "**Verdict: candidate meets the second set.**" in candidate
+    assert text.endswith("**Decision: the candidate becomes the default** (it meets the second set).")
+
+
+def test_the_defaults_runs_that_only_count_passes_are_awaited_only_while_the_count_is_open(tmp_path):
+    """The defaults' shipped Swimmer and HalfCheetah seeds 3-4 count in the second set's first criterion
+    alone. The defaults' other 36 runs pass 33 times (the shipped Swimmer seeds 0-2 never do), so with the
+    4 they pass at most 37 times: 40 candidate passes decide the count without them; 36 (the candidate's
+    shipped Swimmer seeds 0-3 never passing) do not."""
+    import shutil
+
+    late = [(env, "shipped", seed) for env in ("Swimmer-v4", "HalfCheetah-v4") for seed in (3, 4)]
+
+    def report(root, candidate):
+        full_set(root, candidate=candidate, defaults={key: [50] * 6 for key in every("Swimmer-v4", "shipped")})
+        for env, teacher, seed in late:
+            shutil.rmtree(root / "trusted" / teacher / env / "sail" / f"seed{seed}")
+        return rule.report([root]).split("### penalty")[0]
+
+    falling = {key: DEFAULT_RETURNS for key in every()}  # the first set missed: DAC's runs not awaited
+    text = report(tmp_path / "a", falling)
+    assert (
+        "- defaults: 4 runs missing (Swimmer-v4 shipped seed 3, Swimmer-v4 shipped seed 4, HalfCheetah-v4 shipped "
+        "seed 3, HalfCheetah-v4 shipped seed 4) (not needed for the verdict: the count of runs passing is decided)"
+    ) in text
+    assert "met: runs passing: 40 against the defaults' 33, at most 37 with their 4 runs not in" in text
+    assert "**Verdict: candidate meets the second set.**" in text
+
+    stalled = {**falling, **{key: [50] * 6 for key in every("Swimmer-v4", "shipped", seeds=(0, 1, 2, 3))}}
+    text = report(tmp_path / "b", stalled)
+    assert "- defaults: 4 runs missing (Swimmer-v4 shipped seed 3," in text and "count of runs passing" not in text
+    assert "**Verdict: pending.**" in text
 
 
 def test_decision_falls_back_to_the_penalty_then_to_the_defaults(tmp_path):
@@ -279,7 +346,7 @@ def test_best_policy_is_reported_beside_last5(tmp_path):
     assert "| Hopper-v4 | paper (100.0) | candidate | 2 | 2 | 200.0 ± 0.0 | 220.0 ± 14.1 | 0.0% (0/8) |" in text
     assert "| Hopper-v4 | paper (100.0) | defaults | 2 | 2 | 178.0 ± 0.0 | 190.0 (1 of 2) | 25.0% (2/8) |" in text
     assert "| Hopper-v4 | paper (100.0) | dac | 0 | 0 | - | - | - |" in text
-    assert text.endswith("**Decision: pending** (the verdicts wait for every run).")
+    assert text.endswith("**Decision: pending** (the verdicts wait for every run they need).")
     assert "Where the best policy was kept" not in text  # no run says the frame it kept its policy at
 
 
