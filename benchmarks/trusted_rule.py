@@ -418,7 +418,8 @@ def table(found: dict) -> list[str]:
 
 def kept_policies(found: dict) -> list[str]:
     """Where each setting's runs kept their best policy: how many within the last :data:`LATE` frames
-    of the run, below their own last-5, and below their teacher."""
+    of the run, below their own last-5, and below their teacher; and the env and teacher cells where
+    every run kept it that late."""
     lines = []
     for name, results in found.items():
         kept = [run for run in results.values() if run.best_policy is not None and run.best_policy_frames is not None]
@@ -427,9 +428,23 @@ def kept_policies(found: dict) -> list[str]:
         late = sum(run.best_policy_frames > FRAMES - LATE for run in kept)
         below_last5 = sum(run.best_policy < run.last5 for run in kept)
         below_teacher = sum(run.best_policy < run.teacher_return for run in kept)
+        # (env, teacher) cells whose every run kept it late: runs still climbing when they stopped
+        climbing = [
+            f"{env} {teacher}"
+            for env in ENVS
+            for teacher in TEACHERS
+            if (cell := [run for run in kept if (run.env, run.teacher) == (env, teacher)])
+            and all(run.best_policy_frames > FRAMES - LATE for run in cell)
+        ]
+        plural = "s" if len(climbing) > 1 else ""
+        every = (
+            f" Every run with a best policy kept it there with the {listed(climbing)} teacher{plural}."
+            if climbing
+            else ""
+        )
         lines.append(
             f"- {name}: of its {runs(len(kept))} with a best policy, {late} kept it in the last {LATE // 1000}k "
-            f"frames; it is below the run's last-5 in {below_last5} and below the teacher in {below_teacher}."
+            f"frames; it is below the run's last-5 in {below_last5} and below the teacher in {below_teacher}.{every}"
         )
     if not lines:
         return []

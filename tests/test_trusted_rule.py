@@ -369,6 +369,23 @@ def test_where_the_best_policy_was_kept(tmp_path):
     assert "- defaults:" not in text.split("Where the best policy was kept")[1].split("###")[0]
 
 
+def test_cells_whose_every_run_kept_its_best_policy_late(tmp_path):
+    (tmp_path / "trusted").mkdir(parents=True)
+    (tmp_path / "trusted" / "matrix.json").write_text("{}")
+    # Hopper paper: both late (295k, 300k); Walker2d paper: one late, one at 290k (not in the last 10k)
+    for env, frames in (("Hopper-v4", (295_000, 300_000)), ("Walker2d-v4", (300_000, 290_000))):
+        for seed, kept_at in enumerate(frames):
+            write_run(
+                tmp_path, "paper-trusted", env, "sail", seed, CANDIDATE_RETURNS, best_policy=210.0, kept_at=kept_at
+            )
+    text = rule.report([tmp_path])
+    assert (
+        "- candidate: of its 4 runs with a best policy, 3 kept it in the last 10k frames; it is below the run's "
+        "last-5 in 0 and below the teacher in 0. Every run with a best policy kept it there with the "
+        "Hopper-v4 paper teacher." in text
+    )
+
+
 @pytest.mark.parametrize(
     "runs, message",
     [
