@@ -298,7 +298,7 @@ def judge(found: dict, setting: str) -> list[str]:
             "",
         ]
     if missing["dac"]:
-        lines += missed
+        lines += [*missed, ""]
     passed = sum(r.passed for r in ours.values())
     default_passed = sum(r.passed for r in defaults.values())
     falls, counted = pooled_falls(ours)
