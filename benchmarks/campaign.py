@@ -25,12 +25,12 @@ with the teacher buffer held after its first refill (``algo.max_promoted=10``, 2
 ``paper-average10k-hold``, ``paper-average30k-hold``), ``--stages remedies`` two remedies of the
 falls with the candidate on the same seeds and teachers (``network.critic_layer_norm=true``,
 ``teacher.eviction=fifo``; labels ``<teacher>-trusted-ln``, ``-fifo``); after the confirmation,
-with the default it decides,
+with the default it decided (:data:`AFTER_TRUSTED`),
 ``ant`` runs SAIL and DAC on Ant-v4 with the authors' Ant teacher as recorded (label ``paper``)
 and on the columns Ant-v4 reproduces (``paper-nocontact``), ``comparison`` the paper's other rows
 and ``table1`` SAIL at 1M frames (seeds 0-2 each; under the label of the default's runs,
-``TABLE1_LABEL``: with the scale stage's defaults, their two 1M-frame runs are its seed 0 there),
-none a default.
+``TABLE1_LABEL``, ``paper-trusted``), none a default. The SAIL cells of the stages before it
+name SAIL's replaced default (:data:`REPLACED_DEFAULTS`), so that their commands reproduce their runs.
 ``--envs`` and ``--seeds`` keep only those cells of the stages (``--stages weak preact --seeds 0``
 pairs each "before" seed with its "after" sooner), and ``--methods`` keeps only those methods' cells.
 ``--jobs`` runs go at once; rerunning the same command after an interruption continues where it
@@ -68,7 +68,7 @@ import subprocess
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -153,10 +153,17 @@ COMPARISON_METHODS = ("sail_rnd", "sail_sac", "gail", "pofd", "ddpgfd", "dac_pub
 ABLATIONS = ("sail_onpolicy", "sail_no_lfd", "sail_no_adapt")
 ABLATION_ENVS = ("Hopper-v4", "HalfCheetah-v4")
 COMPARISON_SEEDS = (0, 1, 2)
-# SAIL at Table 1's 1M frames runs under the teacher label of the default's own paper-teacher runs:
-# "paper" while the defaults are the scale stage's, whose 1M-frame cells it then leaves out (the
-# same runs); the trusted-default stage's label ("paper-trusted") once its candidate replaces them.
-TABLE1_LABEL = "paper"
+# SAIL at Table 1's 1M frames runs under the teacher label of the default's own paper-teacher runs: the
+# trusted stage's ("paper-trusted"), whose candidate is the default; with "paper" (the replaced
+# default's) it would leave out the scale stage's 1M-frame cells (the same runs)
+TABLE1_LABEL = "paper-trusted"
+# The stages that run with the default the trusted-default confirmation decided; every other stage ran
+# before it, with SAIL's replaced default (REPLACED_DEFAULTS), which its cells name (with_replaced_defaults)
+AFTER_TRUSTED = ("ant", "comparison", "table1")
+# SAIL's settings before the confirmation made its candidate the default (conf/algo/sail.yaml), for the
+# methods whose files extend sail.yaml (the SAIL variants on TD3)
+REPLACED_DEFAULTS = ("optim.actor_preactivation_coef=0.0", "eval.actor=online")
+SAIL_FAMILY = ("sail", "sail_no_adapt", "sail_no_lfd", "sail_onpolicy", "sail_rnd")
 # the stages that run SAIL on the weak teachers (a teacher label "<weak teacher>[-<stage>]")
 WEAK_STAGES = ("weak", "preact", "centred", "logit")
 # D's logit log D - log(1 - D), negative on agent rows: it can pay a fall, so only where no fall ends an episode
@@ -352,9 +359,8 @@ def plan() -> list[Cell]:
         ]
     # The paper's comparison, after the trusted default is decided (its SAIL rows use the default of
     # the commit they run from): the 300k rows seed by seed, then Table 1 at 1M. It runs no SAIL 300k
-    # row of its own: the variants compare with the main stage's SAIL runs, or, if the trusted stage
-    # replaces the defaults, with that stage's paper-teacher runs of the new default (aggregate.py's
-    # paper-comparison block must then read those).
+    # row of its own: the variants compare with the trusted stage's paper-teacher runs of the default
+    # (TABLE1_LABEL's, which aggregate.py shows as sail's).
     for seed in COMPARISON_SEEDS:
         cells += [Cell("comparison", env, method, seed, 300_000) for env in ENVS for method in COMPARISON_METHODS]
         cells += [Cell("comparison", env, method, seed, 300_000) for env in ABLATION_ENVS for method in ABLATIONS]
@@ -365,7 +371,18 @@ def plan() -> list[Cell]:
         for env in ENVS
         if TABLE1_LABEL != "paper" or (env, seed) not in scale
     ]
-    return cells
+    return [with_replaced_defaults(cell) for cell in cells]
+
+
+def with_replaced_defaults(cell: Cell) -> Cell:
+    """``cell`` as it ran: a SAIL cell of a stage before the trusted default (not in :data:`AFTER_TRUSTED`)
+    with SAIL's replaced default (:data:`REPLACED_DEFAULTS`) before its own overrides, each setting its
+    overrides leave alone, so that its command reproduces its runs from this commit."""
+    if cell.stage in AFTER_TRUSTED or cell.method not in SAIL_FAMILY:
+        return cell
+    own = {item.split("=", 1)[0] for item in cell.overrides}
+    replaced = tuple(item for item in REPLACED_DEFAULTS if item.split("=", 1)[0] not in own)
+    return replace(cell, overrides=(*replaced, *cell.overrides))
 
 
 def device_of(overrides: list[str]) -> str:

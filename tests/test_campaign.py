@@ -58,7 +58,8 @@ def test_plan_fills_the_table_seed_0_first():
         ("Hopper-v4", 1_000_000),
     }
     buffer = [c.overrides for c in cells if c.stage == "buffer"]
-    assert sorted(buffer) == sorted([("teacher.eviction=fifo",), ("teacher.eviction=union",)] * 2)
+    replaced = campaign.REPLACED_DEFAULTS  # SAIL's default when these stages ran
+    assert sorted(buffer) == sorted([(*replaced, "teacher.eviction=fifo"), (*replaced, "teacher.eviction=union")] * 2)
     assert len(set(cells)) == len(cells)  # no run twice
     # SAIL with each weak teacher, 3 seeds, seed by seed; the near-random Hopper teacher's third seed
     # beside the teachers stage's two, under its label
@@ -82,7 +83,7 @@ def test_plan_fills_the_table_seed_0_first():
         )
     ]
     assert {(c.method, c.frames, c.overrides) for c in cells if c.stage == "preact"} == {
-        ("sail", 300_000, ("optim.actor_preactivation_coef=0.001",))
+        ("sail", 300_000, ("eval.actor=online", "optim.actor_preactivation_coef=0.001"))  # the online actor, as then
     }
     # SAIL's reward centred at D = 1/2: each weak teacher, then the paper's on every env, seed by seed,
     # each its own "-centred" label
@@ -98,7 +99,7 @@ def test_plan_fills_the_table_seed_0_first():
         )
     ]
     assert {(c.method, c.frames, c.overrides) for c in cells if c.stage == "centred"} == {
-        ("sail", 300_000, ("algo.reward.shift=-0.6931471805599453",))
+        ("sail", 300_000, (*campaign.REPLACED_DEFAULTS, "algo.reward.shift=-0.6931471805599453"))
     }
     # D's logit where no fall ends an episode: each weak teacher, then the paper's on Swimmer and HalfCheetah
     logit = [(c.env, c.seed, c.teacher) for c in cells if c.stage == "logit"]
@@ -113,12 +114,12 @@ def test_plan_fills_the_table_seed_0_first():
         )
     ]
     assert {(c.method, c.frames, c.overrides) for c in cells if c.stage == "logit"} == {
-        ("sail", 300_000, ("algo.reward.kind=airl",))
+        ("sail", 300_000, (*campaign.REPLACED_DEFAULTS, "algo.reward.kind=airl"))
     }
     # fp32 beside bf16, seed by seed, on the paper's Hopper teacher
     precision = [(c.env, c.seed, c.frames, c.teacher, c.overrides) for c in cells if c.stage == "precision"]
     assert precision == [
-        ("Hopper-v4", seed, 100_000, f"paper-{p}", (f"optim.precision={p}",))
+        ("Hopper-v4", seed, 100_000, f"paper-{p}", (*campaign.REPLACED_DEFAULTS, f"optim.precision={p}"))
         for seed in (0, 1, 2)
         for p in ("fp32", "bf16")
     ]
@@ -431,7 +432,9 @@ def test_trusted_stage_confirms_the_candidate_on_eight_teachers_beside_its_compa
     assert len(shipped) == 18 and ("Hopper-v4", 1) not in shipped and ("Hopper-v4", 2) in shipped
     paper = Counter((c.method, c.seed) for c in cells if c.teacher == "paper")
     assert paper == {(method, seed): 4 for method in ("sail", "dac") for seed in (3, 4)}
-    assert all(not c.overrides for c in cells if c not in candidate)
+    # the defaults' runs name the default they ran with, which the candidate replaced
+    replaced = {"sail": campaign.REPLACED_DEFAULTS, "dac": ()}
+    assert all(c.overrides == replaced[c.method] for c in cells if c not in candidate)
     seeds = [c.seed for c in cells]
     assert seeds == sorted(seeds) and cells[0] == campaign.Cell(
         "trusted", "Swimmer-v4", "sail", 0, 300_000, "shipped-trusted", campaign.TRUSTED
@@ -639,12 +642,17 @@ def test_ant_stage_runs_sail_and_dac_on_the_recorded_and_the_reproduced_columns(
     assert len(capsys.readouterr().out.splitlines()) == 12
 
 
-def test_table1_runs_every_seed_under_a_new_defaults_label(monkeypatch):
-    """Once the trusted default replaces the defaults, Table 1's 1M-frame SAIL runs all 12 cells under
-    that default's label, apart from the scale stage's runs of the defaults it replaced."""
-    monkeypatch.setattr(campaign, "TABLE1_LABEL", "paper-trusted")
-    table1 = [(c.env, c.seed, c.teacher) for c in campaign.plan() if c.stage == "table1"]
-    assert sorted(table1) == sorted((env, seed, "paper-trusted") for env in ENVS for seed in (0, 1, 2))
+def test_table1_runs_the_scale_stages_cells_only_under_another_defaults_label(monkeypatch):
+    """Under the label of the replaced default's runs ("paper"), Table 1's 1M-frame SAIL cells leave out
+    the scale stage's two runs (seed 0 of HalfCheetah and Hopper), which are the same runs."""
+    monkeypatch.setattr(campaign, "TABLE1_LABEL", "paper")
+    cells = campaign.plan()
+    table1 = [(c.env, c.method, c.seed, c.frames, c.teacher) for c in cells if c.stage == "table1"]
+    scale = [("HalfCheetah-v4", "sail", 0, 1_000_000, "paper"), ("Hopper-v4", "sail", 0, 1_000_000, "paper")]
+    assert sorted(table1 + scale) == sorted(
+        (env, "sail", seed, 1_000_000, "paper") for env in ENVS for seed in (0, 1, 2)
+    )
+    assert [(c.env, c.seed, c.frames) for c in cells if c.stage == "scale"] == [(e, s, f) for e, _, s, f, _ in scale]
 
 
 def test_comparison_stages_run_every_row_of_the_papers_comparison_on_three_seeds():
@@ -665,13 +673,12 @@ def test_comparison_stages_run_every_row_of_the_papers_comparison_on_three_seeds
     assert len(comparison) == 90 and {c.frames for c in comparison} == {300_000}
     assert [c.seed for c in comparison] == sorted(c.seed for c in comparison)
     assert all(c.teacher == "paper" and not c.overrides for c in comparison)
-    # with the scale stage's defaults, its two 1M-frame runs (seed 0) are Table 1's there, not rerun
-    table1 = [(c.env, c.method, c.seed, c.frames, c.teacher) for c in cells if c.stage == "table1"]
-    scale = [("HalfCheetah-v4", "sail", 0, 1_000_000, "paper"), ("Hopper-v4", "sail", 0, 1_000_000, "paper")]
-    assert sorted(table1 + scale) == sorted(
-        (env, "sail", seed, 1_000_000, "paper") for env in ENVS for seed in (0, 1, 2)
+    # Table 1's 12 cells under the default's label (the trusted stage's), the scale stage's runs of the
+    # replaced default not among them
+    table1 = [(c.env, c.method, c.seed, c.frames, c.teacher, c.overrides) for c in cells if c.stage == "table1"]
+    assert sorted(table1) == sorted(
+        (env, "sail", seed, 1_000_000, "paper-trusted", ()) for env in ENVS for seed in (0, 1, 2)
     )
-    assert [(c.env, c.seed, c.frames) for c in cells if c.stage == "scale"] == [(e, s, f) for e, _, s, f, _ in scale]
     scripts = {c.method: campaign.script_for(c.method).name for c in comparison}
     assert scripts["gail"] == scripts["pofd"] == "gail.py" and scripts["ddpgfd"] == "sail_td3.py"
 
@@ -692,7 +699,7 @@ def test_envs_and_seeds_keep_only_their_cells(tmp_path, capsys):
     assert campaign.main([*args, "--stages", "weak", "preact", "--seeds", "0", "--dry-run"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert len(lines) == 8 and all("seed=0 " in line for line in lines)
-    assert ["preact" in line for line in lines] == [False] * 2 + [True] * 6
+    assert ["-preact/" in line for line in lines] == [False] * 2 + [True] * 6
     # the trusted stage's DAC runs alone: seeds 3-4 on the four envs
     assert campaign.main([*args, "--stages", "trusted", "--methods", "dac", "--dry-run"]) == 0
     lines = capsys.readouterr().out.splitlines()
@@ -765,3 +772,8 @@ def test_every_planned_run_composes_a_valid_config_and_baselines_keep_their_refe
             check_config(cfg)
             if cell.method in baselines:
                 assert cfg.optim.actor_preactivation_coef == 0 and cfg.eval.actor == "online", cell
+            elif cell.method in campaign.SAIL_FAMILY and not set(args) & {*campaign.TRUSTED, *campaign.PREACT}:
+                # SAIL's runs before the trusted default ran with the replaced default; those after, with it
+                before = cell.stage not in campaign.AFTER_TRUSTED
+                assert cfg.optim.actor_preactivation_coef == (0 if before else 0.001), cell
+                assert cfg.eval.actor == ("online" if before else "target"), cell

@@ -570,6 +570,24 @@ def test_sac_temperature_must_be_positive():
         check_config(make("algo=sail_sac", "algo.sac.alpha_init=0"))
 
 
+def test_sails_default_is_the_trusted_default_on_every_td3_variant_and_no_other_method():
+    """conf/algo/sail.yaml sets the pre-tanh penalty and the target actor; the SAIL variants on TD3 extend
+    it, each with its own name and settings; SAC (no target actor) and the baselines keep the schema's."""
+    for algo in ("sail", "sail_no_adapt", "sail_no_lfd", "sail_onpolicy", "sail_rnd"):
+        cfg = make(f"algo={algo}")
+        check_config(cfg)
+        assert cfg.algo.name == algo and cfg.optim.actor_preactivation_coef == 0.001 and cfg.eval.actor == "target"
+    assert make("algo=sail_no_adapt").algo.adaptive is False and make("algo=sail_no_lfd").algo.alpha.initial == 0.0
+    assert make("algo=sail_rnd").algo.rnd is not None
+    assert make("algo=sail_onpolicy").algo.discriminator_agent_data == "recent"
+    for algo in ("sail_sac", "dac", "dac_published", "td3_delayed", "ddpgfd", "pofd_td3", "gail", "pofd", "bc"):
+        cfg = make(f"algo={algo}")
+        assert (cfg.optim.actor_preactivation_coef, cfg.eval.actor) == (0.0, "online"), algo
+    # the authors' settings, on the command line
+    cfg = make("optim.actor_preactivation_coef=0", "eval.actor=online")
+    assert (cfg.optim.actor_preactivation_coef, cfg.eval.actor) == (0.0, "online")
+
+
 def test_actor_preactivation_coef_reaches_the_loss():
     from utils import make_agent, make_discriminator, make_losses
 

@@ -19,8 +19,9 @@ EGL = {"MUJOCO_GL": "egl"}
 
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
-    """2000 frames of SAIL on Hopper with the shipped teacher: one evaluation of the actor, one of its
-    target actor and one of its averaged actor (500-frame memory), and one video, at the end."""
+    """2000 frames of SAIL on Hopper with the shipped teacher: one evaluation of the actor (evaluated and
+    kept, not SAIL's default target actor), one of its target actor and one of its averaged actor
+    (500-frame memory), and one video, at the end."""
     run_dir = tmp_path_factory.mktemp("evaluate") / "run"
     run(
         run_dir,
@@ -31,6 +32,7 @@ def trained(tmp_path_factory):
         "optim.discriminator.steps=2",
         "eval.every_frames=2000",
         "eval.episodes=2",
+        "eval.actor=online",
         "eval.other_actor=true",
         "eval.average_frames=500",
         "eval.best_policy.episodes=2",
