@@ -670,6 +670,12 @@ def method_name(label: str) -> str:
 REPLACED = "sail, replaced default"  # the row name of the SAIL defaults that a confirmed default replaced
 
 
+def default_envs(groups: dict, default_label: str | None) -> set[str]:
+    """The envs with SAIL runs under the confirmed default's own label (``default_label``): there, SAIL's
+    runs under the other labels ran with the default it replaced."""
+    return {env for env, label, method in groups if label == default_label and method_name(method) == "sail"}
+
+
 def default_view(groups: dict, teacher: str, default_label: str | None) -> dict:
     """``groups`` as the README and the paper's comparison show ``teacher``'s runs: where the default
     SAIL's runs with that teacher have a label of their own (``default_label``: the campaign's
@@ -680,7 +686,7 @@ def default_view(groups: dict, teacher: str, default_label: str | None) -> dict:
     (300k)``; a group keeps its own teacher label, which its notes name."""
     if default_label is None or default_label == teacher:
         return groups
-    replaced_envs = {env for env, label, method in groups if label == default_label and method_name(method) == "sail"}
+    replaced_envs = default_envs(groups, default_label)
     view = {}
     for (env, label, method), group in groups.items():
         if method_name(method) != "sail" or label not in (teacher, default_label):
@@ -1587,8 +1593,9 @@ def draw_readme(source: Source) -> None:
 
 
 def block_teacher_table(source: Source, target: Path) -> str:
-    """The results table (:func:`table_lines`) of every method with ``source.teacher``."""
-    return "\n".join(table_lines([row for row in rows(source.groups) if row["teacher"] == source.teacher]))
+    """The results table (:func:`table_lines`) of every method with ``source.teacher``, SAIL's rows as the
+    README shows them (:attr:`Source.shown`)."""
+    return "\n".join(table_lines([row for row in rows(source.shown) if row["teacher"] == source.teacher]))
 
 
 def is_variant(label: str, labels: set[str]) -> bool:
@@ -1597,10 +1604,13 @@ def is_variant(label: str, labels: set[str]) -> bool:
 
 
 def block_teachers(source: Source, target: Path) -> str:
-    """The results table of SAIL's defaults with every teacher (no variant): the paper's Table 2 axis."""
+    """The results table of SAIL with every teacher (no variant): the paper's Table 2 axis. On the envs
+    where a confirmed default has runs of its own label (:func:`default_envs`), these rows are the
+    replaced default's, named so (:data:`REPLACED`)."""
     labels = {teacher for _, teacher, _ in source.groups}
+    replaced = default_envs(source.groups, source.default_label)
     table = [
-        row
+        {**row, "method": REPLACED + row["method"].removeprefix("sail")} if row["env"] in replaced else row
         for row in rows(source.groups)
         if method_name(row["method"]) == "sail" and not is_variant(row["teacher"], labels)
     ]

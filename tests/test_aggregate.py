@@ -1065,6 +1065,26 @@ def test_readme_shows_the_default_label_as_sail_the_replaced_default_and_their_s
         [root], tmp_path / "report", write_into=[(docs, "campaign-sail-vs-dac")], default_label="paper-trusted"
     )
     assert "| Hopper-v4 | paper (150.0) | 200.0 (0), 160.0 (1) | 100.0 (0) | 2/2 | 0/1 |" in docs.read_text()
+    # so does the paper's table in the docs; the teachers' table names the replaced default's rows so, on
+    # the envs where the default has runs of its own label, and leaves the default's runs to the variants'
+    docs.write_text(
+        "<!-- aggregate:campaign START -->\n<!-- aggregate:campaign END -->\n"
+        "<!-- aggregate:campaign-teachers START -->\n<!-- aggregate:campaign-teachers END -->\n"
+    )
+    run_aggregate(
+        [root],
+        tmp_path / "report",
+        write_into=[(docs, "campaign"), (docs, "campaign-teachers")],
+        default_label="paper-trusted",
+    )
+    paper_table, teachers_table = (
+        [line.split(" | ")[2] for line in block.splitlines() if line.startswith("| Hopper-v4")]
+        for block in docs.read_text().split("<!-- aggregate:campaign-teachers START -->")
+    )
+    assert paper_table == ["sail (5k)", "sail, replaced default (5k)", "dac"]
+    assert teachers_table == ["sail, replaced default"]
+    swimmer = [line.split(" | ")[2] for line in docs.read_text().splitlines() if line.startswith("| Swimmer-v4")]
+    assert swimmer == ["sail (5k)", "sail"]  # no default run on Swimmer: its SAIL run stays sail's, in both tables
     # without a default label of its own, the teacher's SAIL runs are sail's, as before
     run_aggregate([root / "main"], tmp_path / "report_main", write_into=[(readme, "campaign-readme")])
     text = readme.read_text()
