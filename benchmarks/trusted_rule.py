@@ -213,14 +213,23 @@ def interim(ours: dict, defaults: dict, setting: str) -> list[str]:
 
 def out_of_reach(ours: dict, setting: str) -> list[str]:
     """The criteria of the first set that ``setting``'s finished runs already miss, whatever its runs
-    still to come: a run that never passed its teacher, or a fall share above :data:`MAX_FALL_SHARE`
-    even if every Hopper and Walker2d run to come counts the most evaluations a run can
-    (:data:`MAX_COUNTED`) and falls in none."""
+    still to come: a run that never passed its teacher, a paper-teacher last-5 mean below its bound
+    (:data:`MIN_VS_TEACHER`) with all five of the env's runs in, or a fall share above
+    :data:`MAX_FALL_SHARE` even if every Hopper and Walker2d run to come counts the most evaluations a
+    run can (:data:`MAX_COUNTED`) and falls in none."""
     lines = []
     failed = [f"{env} {teacher} seed {seed}" for (env, teacher, seed), run in sorted(ours.items()) if not run.passed]
     if failed:
         shown = failed[:6] + ([f"{len(failed) - 6} more"] if len(failed) > 6 else [])
         lines.append(f"- every run passes its teacher: missed, as {listed(shown)} never passed.")
+    for env in ENVS:
+        if all((env, "paper", seed) in ours for seed in SEEDS):
+            mean, teacher = paper_mean(ours, env)[0], ours[env, "paper", SEEDS[0]].teacher_return
+            if mean / teacher < MIN_VS_TEACHER[env]:
+                lines.append(
+                    f"- {env}: last-5 at least {MIN_VS_TEACHER[env]} x the teacher: missed, as it is "
+                    f"{mean / teacher:.2f} x ({mean:.1f} against {teacher:.1f}), its five runs in."
+                )
     falls, counted = pooled_falls(ours, list(ours))
     to_come = sum(key not in ours for key in needed(setting) if key[0] in FALL_ENVS)
     best = counted + to_come * MAX_COUNTED

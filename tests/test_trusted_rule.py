@@ -169,6 +169,23 @@ def test_the_first_set_out_of_reach_before_every_run_is_in(tmp_path):
     assert "fall share on Hopper and Walker2d at most 5%: missed" not in text
 
 
+def test_a_paper_mean_below_its_bound_is_out_of_reach_once_its_five_runs_are_in(tmp_path):
+    """Five Swimmer paper-teacher runs at last-5 140 against a teacher of 100 (1.4x, the bound 1.5x), the
+    other envs' runs still to come; four Hopper ones at 200 (2x): not judged until the fifth is in."""
+    (tmp_path / "trusted").mkdir(parents=True)
+    (tmp_path / "trusted" / "matrix.json").write_text("{}")
+    for seed in rule.SEEDS:
+        write_run(tmp_path, "paper-trusted", "Swimmer-v4", "sail", seed, [50] + [140] * 5)
+    for seed in rule.SEEDS[:4]:
+        write_run(tmp_path, "paper-trusted", "Hopper-v4", "sail", seed, [50] + [90] * 5)  # 0.9x, one run to come
+    text = rule.report([tmp_path]).split("### penalty")[0]
+    assert (
+        "- Swimmer-v4: last-5 at least 1.5 x the teacher: missed, as it is 1.40 x (140.0 against 100.0), its "
+        "five runs in." in text
+    )
+    assert "- Hopper-v4: last-5 at least" not in text
+
+
 def candidate_and_default(root, env, default_seed) -> str:
     """The rule's report on one candidate run (seed 0, falls once after passing) and one default run."""
     (root / "trusted").mkdir(parents=True)
