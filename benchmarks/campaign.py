@@ -19,7 +19,8 @@ teachers stage's), ``--stages preact`` SAIL with the actor's pre-tanh penalty
 paper's teachers, ``--stages centred`` SAIL with its reward centred at D = 1/2
 (``algo.reward.shift=-log 2``; teacher labels ``<teacher>-centred``), and ``--stages logit`` SAIL with
 D's logit (``algo.reward.kind=airl``; ``<teacher>-logit``) on Swimmer and HalfCheetah, none a default.
-``--stages trusted`` is the trusted-default confirmation, ``--stages average`` tunes an averaged
+``trusted``, the last default stage, is the trusted-default confirmation (the default's own rows of the
+results table), ``--stages average`` tunes an averaged
 actor (``eval.average_frames``) on tuning seeds 100-103, ``--stages hold`` reruns its Hopper runs
 with the teacher buffer held after its first refill (``algo.max_promoted=10``, 200k frames; labels
 ``paper-average10k-hold``, ``paper-average30k-hold``), ``--stages remedies`` two remedies of the
@@ -215,7 +216,7 @@ DIAGNOSTICS = (
     "time/fps",
 )
 # what runs without --stages (the others are never defaults)
-DEFAULT_STAGES = ("main", "scale", "teachers", "buffer")
+DEFAULT_STAGES = ("main", "scale", "teachers", "buffer", "trusted")
 COMMON = (
     "threads=1",
     "resume=auto",
@@ -617,11 +618,10 @@ def main(argv: list[str] | None = None) -> int:
         ],
         help=f"the stages to run (default: {' '.join(DEFAULT_STAGES)}) or, with --collect, to copy (default: "
         "all); weak (SAIL with weak teachers), precision (fp32 against bf16: it needs bf16 hardware), preact "
-        "(SAIL with the actor's pre-tanh penalty), centred (SAIL with its reward centred at D = 1/2) and logit "
-        "(SAIL with D's logit), trusted (the trusted-default confirmation), average (an averaged actor's "
-        "tuning), hold (the teacher buffer held at its first refill), remedies (two remedies of the falls, "
-        "tuned), ant (SAIL and DAC on Ant-v4), comparison (the paper's other rows) and table1 (SAIL at 1M) are "
-        "never defaults",
+        "(SAIL with the actor's pre-tanh penalty), centred (SAIL with its reward centred at D = 1/2), logit "
+        "(SAIL with D's logit), average (an averaged actor's tuning), hold (the teacher buffer held at its "
+        "first refill), remedies (two remedies of the falls, tuned), ant (SAIL and DAC on Ant-v4), comparison "
+        "(the paper's other rows) and table1 (SAIL at 1M) are never defaults",
     )
     parser.add_argument(
         "--envs",

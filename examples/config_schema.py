@@ -315,7 +315,8 @@ class OptimConfig:
     # Replay the fused TD3 step as CUDA graphs (device=cuda; TensorDict's CudaGraphModule, as
     # TorchRL's sota scripts): the step's kernels launched as one graph, the Adam steps capturable.
     cudagraphs: bool = False
-    # The actor's extras (all off by default; algo=dac_published sets them as Kostrikov et al.'s DAC):
+    # The actor's extras (all off in the schema; algo=dac_published sets the first three as Kostrikov et al.'s
+    # DAC, conf/algo/sail.yaml the pre-tanh penalty):
     # the actor is first updated at this gradient step (then every policy_delay-th); the targets move from the start
     actor_updates_after: int = 0
     actor_max_grad_norm: float | None = None  # clip the actor's gradients to this global norm

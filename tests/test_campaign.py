@@ -302,7 +302,6 @@ def test_matrix_records_every_stage_and_label(tmp_path, monkeypatch):
         "preact",
         "centred",
         "logit",
-        "trusted",
         "average",
         "hold",
         "remedies",
@@ -711,7 +710,7 @@ def test_envs_and_seeds_keep_only_their_cells(tmp_path, capsys):
     assert "--stages weak has no cell with these --envs, --seeds and --methods" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         campaign.main([*args, "--envs", "Ant-v4", "--dry-run"])  # no default stage runs Ant
-    assert "--stages main scale teachers buffer has no cell with these --envs" in capsys.readouterr().err
+    assert "--stages main scale teachers buffer trusted has no cell with these --envs" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         campaign.main([*args, "--envs", "Humanoid-v4", "--dry-run"])
     assert "invalid choice: 'Humanoid-v4'" in capsys.readouterr().err
