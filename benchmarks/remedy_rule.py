@@ -18,6 +18,15 @@ the one with the lowest fall share (the first in :data:`campaign.REMEDIES` on a 
 a criterion, none goes on, as the rule was written before the runs. The choice is ``pending`` until
 every run is finished.
 
+The average stage's runs also evaluated an averaged actor (``eval/return_average``, memory
+``eval.average_frames``: 10k frames on two seeds, 30k on the other two, :data:`campaign.AVERAGE_SEEDS`).
+It goes on to a confirmation of its own by the same bounds with the same runs' target actor in the
+candidate's place: its fall share pooled over the stage's runs at most
+:data:`MAX_SHARE_OF_CANDIDATE` of the target actor's, every run's averaged actor passes its teacher,
+and its last-5 mean per teacher not below the target actor's by more than the target actor's sample
+standard deviation there; of the two memories, the one with the lower pooled fall share over its own
+runs goes on (the shorter on a tie, as a tie between remedies goes to the first).
+
 A run is refused, naming its folder, when its config was not run with its setting's values
 (:data:`SETTINGS`), when two runs claim the same cell, or when its evaluations cannot be read
 (:func:`trusted_rule.checked_evals`'s checks).
@@ -35,7 +44,11 @@ from aggregate import HEADLINE_EVALS, find_run_folders, load_run  # noqa: E402
 from campaign import AVERAGE_SEEDS, AVERAGE_TEACHERS, REMEDIES, REMEDY_SEEDS  # noqa: E402
 from trusted_rule import EVALUATIONS, FRAMES, Result, config_value, percent, rule_main, spread  # noqa: E402
 
+from torchrl_sail.harness import read_scalar  # noqa: E402
+
 MAX_SHARE_OF_CANDIDATE = 0.5
+AVERAGED = "averaged"  # the average stage's averaged actor, judged against its target actor
+AVERAGED_TAG = "eval/return_average"
 CANDIDATE = {"optim.actor_preactivation_coef": 0.001, "eval.actor": "target", "eval.other_actor": True}
 # what each setting's runs were run with (campaign.TRUSTED, and each remedy's override on top)
 SETTINGS = {
@@ -56,8 +69,15 @@ def setting_of(label: str) -> tuple[str, str] | None:
     return None
 
 
-def checked(run, setting: str) -> list[tuple[int, float]]:
-    """The target actor's evaluations of ``run``, after checking its setting and that they can be read."""
+def memory_of(label: str) -> int | None:
+    """The averaged actor's memory in frames of an average-stage label (``paper-average10k`` -> 10000)."""
+    return next((memory for memory in AVERAGE_SEEDS if label.endswith(f"-average{memory // 1000}k")), None)
+
+
+def checked(run, setting: str, curve: list[tuple[int, float]] | None = None) -> list[tuple[int, float]]:
+    """The target actor's evaluations of ``run`` (or ``curve``, another of its actors' evaluations),
+    after checking its setting and that they can be read."""
+    curve = run.curve if curve is None else curve
     for key, expected in {**SETTINGS[setting], **EVALUATIONS}.items():
         value = config_value(run.config, key)  # an older run's at what it ran with (trusted_rule.BEFORE_THE_KEY)
         if value != expected:
@@ -67,14 +87,28 @@ def checked(run, setting: str) -> list[tuple[int, float]]:
             )
     if run.teacher_return is None or not math.isfinite(run.teacher_return):
         raise ValueError(f"{run.folder / 'summary.json'}: teacher_return is {run.teacher_return!r}, not a number")
-    if len(run.curve) < HEADLINE_EVALS or not all(math.isfinite(value) for _, value in run.curve):
-        raise ValueError(f"{run.folder}: eval/return has fewer than {HEADLINE_EVALS} finite evaluations")
-    return run.curve
+    if len(curve) < HEADLINE_EVALS or not all(math.isfinite(value) for _, value in curve):
+        tag = "eval/return" if curve is run.curve else AVERAGED_TAG
+        raise ValueError(f"{run.folder}: {tag} has fewer than {HEADLINE_EVALS} finite evaluations")
+    return curve
+
+
+def averaged(run) -> Result:
+    """The averaged actor's figures of an average-stage ``run``, after checking its memory."""
+    memory, ran = memory_of(run.teacher), config_value(run.config, "eval.average_frames")
+    if ran != memory:
+        raise ValueError(
+            f"{run.folder}: labelled {run.teacher}, but its config has eval.average_frames={ran!r} where the "
+            f"label names {memory}"
+        )
+    curve = sorted(dict(read_scalar(run.folder, AVERAGED_TAG)).items())
+    teacher = run.teacher.removesuffix(f"-average{memory // 1000}k")
+    return Result(run.env, teacher, run.seed, run.teacher_return, checked(run, "candidate", curve))
 
 
 def tuning_runs(roots: list[Path]) -> dict[str, dict[tuple[str, str, int], Result]]:
     """Every finished 300k tuning run, by setting and (env, teacher, seed)."""
-    found = {name: {} for name in SETTINGS}
+    found = {name: {} for name in (*SETTINGS, AVERAGED)}
     folders = {}
     cells = {(env, teacher) for env, teacher in AVERAGE_TEACHERS}
     for folder in find_run_folders(roots):
@@ -91,21 +125,23 @@ def tuning_runs(roots: list[Path]) -> dict[str, dict[tuple[str, str, int], Resul
             raise ValueError(f"two {setting} runs of {key}: {folders[setting, key]} and {folder}")
         folders[setting, key] = folder
         found[setting][key] = Result(*key, run.teacher_return, checked(run, setting))
+        if setting == "candidate":
+            found[AVERAGED][key] = averaged(run)
     return found
 
 
-def needed() -> list[tuple[str, str, int]]:
-    return [(env, teacher, seed) for env, teacher in AVERAGE_TEACHERS for seed in REMEDY_SEEDS]
+def needed(seeds=REMEDY_SEEDS) -> list[tuple[str, str, int]]:
+    return [(env, teacher, seed) for env, teacher in AVERAGE_TEACHERS for seed in seeds]
 
 
-def pooled(results: dict) -> tuple[int, int]:
-    counts = [results[key].falls for key in needed()]
+def pooled(results: dict, seeds=REMEDY_SEEDS) -> tuple[int, int]:
+    counts = [results[key].falls for key in needed(seeds)]
     return sum(f for f, _ in counts), sum(n for _, n in counts)
 
 
 def table(found: dict) -> list[str]:
     lines = [
-        "| env | teacher | setting | seeds | passed teacher | last-5 (target actor) | fall share (target actor) |",
+        "| env | teacher | setting | seeds | passed teacher | last-5 | fall share |",
         "|---|---|---|---|---|---|---|",
     ]
     for env, teacher in AVERAGE_TEACHERS:
@@ -114,25 +150,33 @@ def table(found: dict) -> list[str]:
             falls = [run.falls for run in runs]
             shown = f"{teacher} ({runs[0].teacher_return:.1f})" if runs else teacher
             share = percent(sum(f for f, _ in falls), sum(n for _, n in falls)) if runs else "-"
+            setting = "candidate, averaged actor" if name == AVERAGED else name
             lines.append(
-                f"| {env} | {shown} | {name} | {len(runs)} | {sum(run.passed for run in runs)} "
+                f"| {env} | {shown} | {setting} | {len(runs)} | {sum(run.passed for run in runs)} "
                 f"| {spread([run.last5 for run in runs])} | {share} |"
             )
     return [*lines, ""]
 
 
 def judge(found: dict, remedy: str) -> tuple[bool | None, list[str]]:
-    """Whether ``remedy`` meets the three criteria (None: runs missing), and the lines that say why."""
-    missing = [key for name in ("candidate", remedy) for key in needed() if key not in found[name]]
+    """Whether ``remedy`` (or :data:`AVERAGED`) meets the three criteria against the candidate's target
+    actor (None: runs missing), and the lines that say why."""
+    if remedy == AVERAGED:  # the same runs' two actors
+        of, missing = "the target actor's", [key for key in needed() if key not in found["candidate"]]
+        pending = f"- {remedy}: pending, {len(missing)} of the average stage's runs missing."
+    else:
+        of = "the candidate's"
+        missing = [key for name in ("candidate", remedy) for key in needed() if key not in found[name]]
+        pending = f"- {remedy}: pending, {len(missing)} of its and the candidate's runs missing."
     if missing:
-        return None, [f"- {remedy}: pending, {len(missing)} of its and the candidate's runs missing."]
+        return None, [pending]
     ours, theirs = pooled(found[remedy]), pooled(found["candidate"])
     share = ours[0] / ours[1] if ours[1] else math.nan
     limit = MAX_SHARE_OF_CANDIDATE * theirs[0] / theirs[1] if theirs[1] else math.nan
     criteria = [
         (
             share <= limit,
-            f"fall share {percent(*ours)}, at most {MAX_SHARE_OF_CANDIDATE:g} of the candidate's "
+            f"fall share {percent(*ours)}, at most {MAX_SHARE_OF_CANDIDATE:g} of {of} "
             f"{percent(*theirs)}, {100 * limit:.1f}%",
         ),
         (
@@ -147,12 +191,37 @@ def judge(found: dict, remedy: str) -> tuple[bool | None, list[str]]:
         criteria.append(
             (
                 mine >= floor,
-                f"{env} ({teacher} teacher) last-5 {mine:.1f}, not below the candidate's mean minus its std, "
-                f"{floor:.1f}",
+                f"{env} ({teacher} teacher) last-5 {mine:.1f}, not below {of} mean minus its std, {floor:.1f}",
             )
         )
     lines = [f"- {remedy}:"] + [f"  - {'met' if met else 'missed'}: {text}" for met, text in criteria]
     return all(met for met, _ in criteria), lines
+
+
+def averaged_choice(found: dict) -> list[str]:
+    """The averaged actor's judgement against the target actor of the same runs, and its memory."""
+    met, lines = judge(found, AVERAGED)
+    shares = {}
+    for memory, seeds in AVERAGE_SEEDS.items():
+        counts = pooled(found[AVERAGED], seeds) if met is not None else None
+        shares[memory] = counts[0] / counts[1] if counts and counts[1] else math.inf
+        if counts:
+            named = ", ".join(map(str, seeds))
+            lines.append(f"  - memory {memory // 1000}k (seeds {named}): fall share {percent(*counts)}")
+    if met is None:
+        choice = "pending (the choice waits for every run)"
+    elif not met:
+        choice = "it does not go on: it misses a criterion"
+    else:
+        memory = min(AVERAGE_SEEDS, key=lambda m: shares[m])  # the shorter memory on a tie
+        choice = f"it goes on to a confirmation with eval.average_frames={memory} (the lower fall share)"
+    return [
+        "### The averaged actor against the target actor of the same runs",
+        "",
+        *lines,
+        "",
+        f"**Averaged actor: {choice}.**",
+    ]
 
 
 def report(roots: list[Path]) -> str:
@@ -162,7 +231,8 @@ def report(roots: list[Path]) -> str:
         "## Remedies of the falls on their tuning runs",
         "",
         f"Written by `benchmarks/remedy_rule.py`: 300k frames, seeds {REMEDY_SEEDS[0]}-{REMEDY_SEEDS[-1]}; runs "
-        "found: " + ", ".join(f"{name} {len(results)}" for name, results in found.items()) + ".",
+        "found: " + ", ".join(f"{name} {len(results)}" for name, results in found.items() if name != AVERAGED) + ". "
+        "Every row reads its runs' target actor, but the candidate's averaged actor (`eval/return_average`).",
         "",
         *table(found),
         *(line for _, lines in verdicts.values() for line in lines),
@@ -182,7 +252,7 @@ def report(roots: list[Path]) -> str:
             if verdicts[lowest][0]
             else f"none: {lowest}, the lowest fall share, misses a criterion"
         )
-    return "\n".join([*lines, f"**Choice: {choice}.**"])
+    return "\n".join([*lines, f"**Choice: {choice}.**", "", *averaged_choice(found)])
 
 
 def main(argv: list[str] | None = None) -> int:

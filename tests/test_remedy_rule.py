@@ -18,9 +18,10 @@ FALLS_ONCE = [50, 200, 90, 200, 200, 200]  # one fall in 4, last-5 178
 NEVER_PASSES = [50, 60, 70, 80, 90, 95]
 
 
-def write_run(root, setting, env, teacher, seed, returns, config=None):
+def write_run(root, setting, env, teacher, seed, returns, config=None, averaged=None):
     """A collected run of ``setting`` (its stage, label and config) with ``returns`` as its target
-    actor's evaluations; ``config`` replaces the setting's config entries it names."""
+    actor's evaluations and, for the candidate, ``averaged`` (default: ``returns``) as its averaged
+    actor's; ``config`` replaces the setting's config entries it names."""
     stage, label = (
         ("average", f"{teacher}-average{10 if seed < 102 else 30}k")
         if setting == "candidate"
@@ -30,6 +31,8 @@ def write_run(root, setting, env, teacher, seed, returns, config=None):
     folder.mkdir(parents=True)
     (root / stage / "matrix.json").write_text("{}")  # a campaign stage: labels are its teacher folders
     values = {**rule.SETTINGS[setting], **(config or {})}
+    if setting == "candidate":
+        values = {"eval.average_frames": 10_000 if seed < 102 else 30_000, **values}
     nested = {"env": {"name": env}, "algo": {"name": "sail"}, "seed": seed, "collector": {"total_frames": 300_000}}
     nested["eval"] = {"episodes": 10, "every_frames": 10_000}
     for key, value in values.items():
@@ -44,15 +47,19 @@ def write_run(root, setting, env, teacher, seed, returns, config=None):
     summary = {"env": env, "frames": 300_000, "total_frames": 300_000, "teacher_return": TEACHER}
     (folder / "summary.json").write_text(json.dumps(summary))
     rows = ["tag,frames,value", *(f"eval/return,{10_000 * (i + 1)},{v}" for i, v in enumerate(returns))]
+    if setting == "candidate":
+        averaged = returns if averaged is None else averaged
+        rows += [f"eval/return_average,{10_000 * (i + 1)},{v}" for i, v in enumerate(averaged)]
     (folder / "scalars.csv").write_text("\n".join(rows) + "\n")
     return folder
 
 
-def full_set(root, returns=None, skip=(), config=None):
+def full_set(root, returns=None, skip=(), config=None, averaged=None):
     """Every tuning run: the candidate falls once in 4 after passing, the remedies hold, except where
     ``returns`` maps (setting, env, seed) to other returns; ``config`` maps (setting, env, seed) to
-    config entries."""
-    returns, config = returns or {}, config or {}
+    config entries; ``averaged`` maps (env, seed) to the candidate's averaged actor's returns (default:
+    its target actor's)."""
+    returns, config, averaged = returns or {}, config or {}, averaged or {}
     for setting in rule.SETTINGS:
         for env, teacher in rule.AVERAGE_TEACHERS:
             for seed in rule.REMEDY_SEEDS:
@@ -66,6 +73,7 @@ def full_set(root, returns=None, skip=(), config=None):
                         seed,
                         returns.get((setting, env, seed), default),
                         config.get((setting, env, seed)),
+                        averaged.get((env, seed)) if setting == "candidate" else None,
                     )
 
 
@@ -89,7 +97,7 @@ def test_the_remedy_with_the_lowest_fall_share_goes_on_when_it_meets_every_crite
         "  - met: Walker2d-v4 (shipped teacher) last-5 200.0, not below the candidate's mean minus its std, 178.0"
         in text
     )
-    assert text.endswith("**Choice: ln (the lowest fall share) goes on to a confirmation.**")
+    assert "**Choice: ln (the lowest fall share) goes on to a confirmation.**" in text
 
 
 def test_none_goes_on_when_the_lowest_fall_share_misses_a_criterion(tmp_path):
@@ -102,7 +110,7 @@ def test_none_goes_on_when_the_lowest_fall_share_misses_a_criterion(tmp_path):
     text = rule.report([tmp_path])
     assert "  - missed: runs passing their teacher: 7 of 8" in text
     assert "  - met: fall share 0.0% (0/28)" in text
-    assert text.endswith("**Choice: none: ln, the lowest fall share, misses a criterion.**")
+    assert "**Choice: none: ln, the lowest fall share, misses a criterion.**" in text
 
 
 def test_a_remedy_misses_on_last5_below_the_candidates_mean_minus_its_std(tmp_path):
@@ -122,7 +130,7 @@ def test_a_remedy_misses_on_last5_below_the_candidates_mean_minus_its_std(tmp_pa
         "  - missed: Hopper-v4 (paper teacher) last-5 160.0, not below the candidate's mean minus its std, 172.5"
         in text
     )
-    assert text.endswith("**Choice: none: ln, the lowest fall share, misses a criterion.**")
+    assert "**Choice: none: ln, the lowest fall share, misses a criterion.**" in text
 
 
 def test_pending_until_every_run_and_refusals_name_the_folder(tmp_path):
@@ -130,7 +138,7 @@ def test_pending_until_every_run_and_refusals_name_the_folder(tmp_path):
     text = rule.report([tmp_path])
     assert "- fifo: pending, 1 of its and the candidate's runs missing." in text
     assert "- ln:\n  - met:" in text
-    assert text.endswith("**Choice: pending (the choice waits for every run).**")
+    assert "**Choice: pending (the choice waits for every run).**" in text
 
     # a run labelled ln that was not run with the LayerNorm critic
     other = tmp_path / "other"
@@ -145,3 +153,44 @@ def test_pending_until_every_run_and_refusals_name_the_folder(tmp_path):
     write_run(twice / "copy", "candidate", "Hopper-v4", "paper", 100, HOLDS)
     with pytest.raises(ValueError, match=r"two candidate runs of \('Hopper-v4', 'paper', 100\)"):
         rule.report([twice])
+
+
+def test_the_averaged_actor_goes_on_with_the_memory_of_the_lower_fall_share(tmp_path):
+    """The target actor falls once in 4 on every run (8/32 = 25%: the averaged actor may have 12.5%).
+    The averaged actor holds on the 10k seeds (100, 101) and falls once on one 30k run: 1/32 = 3.1%,
+    last-5 at least the target actor's 178 everywhere; 10k's share (0/16) is below 30k's (1/16)."""
+    holds = {(env, seed): HOLDS for env, _ in rule.AVERAGE_TEACHERS for seed in rule.REMEDY_SEEDS}
+    full_set(tmp_path, averaged={**holds, ("Hopper-v4", 102): FALLS_ONCE})
+    text = rule.report([tmp_path])
+    assert "| Hopper-v4 | paper (100.0) | candidate, averaged actor | 4 | 4 | 194.5 ± 11.0 | 6.2% (1/16) |" in text
+    assert "  - met: fall share 3.1% (1/32), at most 0.5 of the target actor's 25.0% (8/32), 12.5%" in text
+    assert "  - memory 10k (seeds 100, 101): fall share 0.0% (0/16)" in text
+    assert "  - memory 30k (seeds 102, 103): fall share 6.2% (1/16)" in text
+    assert text.endswith(
+        "**Averaged actor: it goes on to a confirmation with eval.average_frames=10000 (the lower fall share).**"
+    )
+
+
+def test_the_averaged_actor_stops_at_a_missed_criterion_and_waits_for_every_run(tmp_path):
+    """Its falls are the target actor's (25%, above half of it): it does not go on. With one average-stage
+    run missing it is pending."""
+    full_set(tmp_path)
+    text = rule.report([tmp_path])
+    assert "  - missed: fall share 25.0% (8/32), at most 0.5 of the target actor's 25.0% (8/32), 12.5%" in text
+    assert text.endswith("**Averaged actor: it does not go on: it misses a criterion.**")
+
+    missing = tmp_path / "missing"
+    full_set(missing, skip={("candidate", "Walker2d-v4", 103)})
+    text = rule.report([missing])
+    assert "- averaged: pending, 1 of the average stage's runs missing." in text
+    assert text.endswith("**Averaged actor: pending (the choice waits for every run).**")
+
+
+def test_an_average_run_whose_memory_is_not_its_labels_is_refused(tmp_path):
+    full_set(tmp_path, config={("candidate", "Hopper-v4", 102): {"eval.average_frames": 10_000}})
+    with pytest.raises(
+        ValueError,
+        match=r"seed102: labelled paper-average30k, but its config has "
+        r"eval.average_frames=10000 where the label names 30000",
+    ):
+        rule.report([tmp_path])
