@@ -13,7 +13,7 @@ SAIL's runs at 300k frames, seeds :data:`campaign.COMPARISON_SEEDS`. In the rule
 3. otherwise the 27 columns.
 
 DAC's runs of the stage are shown beside SAIL's and take no part in the choice. The choice is
-``pending`` until every SAIL run of the stage is finished. A run is refused, naming its folder, when
+"not decided yet" until every SAIL run of the stage is finished. A run is refused, naming its folder, when
 its config was not run with its way's settings (:data:`WAYS`), when two runs claim the same cell, or
 when its evaluations cannot be read.
 """
@@ -102,7 +102,7 @@ def table(found: dict) -> list[str]:
 
 
 def choose(found: dict) -> tuple[str | None, str]:
-    """The way the rule picks (None: pending) and the step that picked it."""
+    """The way the rule picks (None: not decided yet) and the step that picked it."""
     missing = [(way, seed) for way in WAYS for seed in COMPARISON_SEEDS if seed not in found["sail", way]]
     if missing:
         return None, f"{len(missing)} of SAIL's {len(WAYS) * len(COMPARISON_SEEDS)} runs missing"
@@ -130,7 +130,7 @@ def choose(found: dict) -> tuple[str | None, str]:
 
 
 def recommendation(roots: list[Path]) -> str:
-    """The way the rule picks, with its command, or that it is pending."""
+    """The way the rule picks, with its command, or that it is not decided yet."""
     way, why = choose(ant_runs(roots))
     if way is None:
         return f"**Recommended way: not decided yet ({why}).**"
