@@ -673,10 +673,12 @@ def test_comparison_stages_run_every_row_of_the_papers_comparison_on_three_seeds
     assert [c.seed for c in comparison] == sorted(c.seed for c in comparison)
     assert all(c.teacher == "paper" and not c.overrides for c in comparison)
     # Table 1's 12 cells under the default's label (the trusted stage's), the scale stage's runs of the
-    # replaced default not among them
+    # replaced default not among them, each evaluating the online actor beside the target actor
     table1 = [(c.env, c.method, c.seed, c.frames, c.teacher, c.overrides) for c in cells if c.stage == "table1"]
     assert sorted(table1) == sorted(
-        (env, "sail", seed, 1_000_000, "paper-trusted", ()) for env in ENVS for seed in (0, 1, 2)
+        (env, "sail", seed, 1_000_000, "paper-trusted", ("eval.other_actor=true",))
+        for env in ENVS
+        for seed in (0, 1, 2)
     )
     scripts = {c.method: campaign.script_for(c.method).name for c in comparison}
     assert scripts["gail"] == scripts["pofd"] == "gail.py" and scripts["ddpgfd"] == "sail_td3.py"
