@@ -2072,6 +2072,8 @@ DOCUMENTS = {
 # falls.py's tables: file -> (the run folders it reads, the teacher return of runs without a summary),
 # paths relative to the repository
 TUNING = Path("benchmarks/results/trusted_tuning")
+# the average stage's (memory, seed) pairs (campaign.AVERAGE_SEEDS)
+AVERAGE_RUNS = (("10k", 100), ("10k", 101), ("30k", 102), ("30k", 103))
 FALLS = {
     "benchmarks/results/hopper_falls/falls_hopper_defaults.md": (
         [CAMPAIGN / f"main/paper/Hopper-v4/sail/seed{seed}" for seed in (0, 1, 2)]
@@ -2088,6 +2090,15 @@ FALLS = {
     ),
     "benchmarks/results/hopper_falls/falls_walker2d_preact.md": (
         [CAMPAIGN / f"preact/paper-preact/Walker2d-v4/sail/seed{seed}" for seed in (0, 1, 2)],
+        None,
+    ),
+    # the three actors of the average stage's Hopper runs, and of the same runs with the teacher buffer held
+    "benchmarks/results/remedies/falls_average_hopper.md": (
+        [CAMPAIGN / f"average/paper-average{memory}/Hopper-v4/sail/seed{seed}" for memory, seed in AVERAGE_RUNS],
+        None,
+    ),
+    "benchmarks/results/hold/falls.md": (
+        [CAMPAIGN / f"hold/paper-average{memory}-hold/Hopper-v4/sail/seed{seed}" for memory, seed in AVERAGE_RUNS],
         None,
     ),
     # stopped runs, without a summary: their teachers' returns (the paper's Hopper one, the shipped Walker2d one)
