@@ -51,10 +51,12 @@ AVERAGED = "averaged"  # the average stage's averaged actor, judged against its 
 AVERAGED_TAG = "eval/return_average"
 CANDIDATE = {"optim.actor_preactivation_coef": 0.001, "eval.actor": "target", "eval.other_actor": True}
 # what each setting's runs were run with (campaign.TRUSTED, and each remedy's override on top)
+PLAIN = {"network.critic_layer_norm": False, "teacher.eviction": "topk", "optim.actor_lr": None}
 SETTINGS = {
-    "candidate": {**CANDIDATE, "network.critic_layer_norm": False, "teacher.eviction": "topk"},
-    "ln": {**CANDIDATE, "network.critic_layer_norm": True, "teacher.eviction": "topk"},
-    "fifo": {**CANDIDATE, "network.critic_layer_norm": False, "teacher.eviction": "fifo"},
+    "candidate": {**CANDIDATE, **PLAIN},
+    "ln": {**CANDIDATE, **PLAIN, "network.critic_layer_norm": True},
+    "fifo": {**CANDIDATE, **PLAIN, "teacher.eviction": "fifo"},
+    "actor_lr": {**CANDIDATE, **PLAIN, "optim.actor_lr": 0.0003},
 }
 
 

@@ -288,6 +288,8 @@ class OptimConfig:
 
     batch_size: int = 256
     lr: float = 1.0e-3
+    # the actor's Adam learning rate, where it differs from lr (the critic's); null: lr
+    actor_lr: float | None = None
     gamma: float = 0.99
     tau: float = 0.005
     policy_delay: int = 2
@@ -541,6 +543,7 @@ SAVED_BEFORE = {
     "network.actor_critic_init": "torch",
     "network.discriminator_init": "xavier",
     "network.critic_layer_norm": False,
+    "optim.actor_lr": None,
 }
 
 
@@ -1017,6 +1020,7 @@ def _check_optim(cfg: DictConfig) -> None:
             _at_least("optim.policy_delay", o.policy_delay, 1),
             _at_least("optim.updates_per_train", o.updates_per_train, 0),
             ("optim.lr", o.lr, o.lr > 0, "must be > 0"),
+            ("optim.actor_lr", o.actor_lr, o.actor_lr is None or o.actor_lr > 0, "must be > 0 or null"),
             ("optim.gamma", o.gamma, 0 < o.gamma <= 1, "must be in (0, 1]"),
             ("optim.tau", o.tau, 0 < o.tau <= 1, "must be in (0, 1]"),
             _cadence(cfg, "optim.train_every_frames", o.train_every_frames, cfg.algo.learner in ("td3", "sac")),

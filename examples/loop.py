@@ -32,6 +32,7 @@ from tensordict.nn import TensorDictModuleBase
 from torchrl import timeit
 from utils import (
     ActorDrift,
+    actor_lr,
     actor_saturation,
     discriminator_block,
     make_absorbing,
@@ -412,7 +413,7 @@ def make_td3_block(
         precision=torch.autocast(torch.device(cfg.device).type, dtype=torch.bfloat16, enabled=o.precision == "bf16"),
         lr_decay=None
         if decay is None
-        else ActorLRDecay(optimizers["actor"], o.lr, rate=decay.rate, every_frames=decay.every_frames),
+        else ActorLRDecay(optimizers["actor"], actor_lr(cfg), rate=decay.rate, every_frames=decay.every_frames),
         drift=ActorDrift(actor, loss) if td3 else None,
         saturation=(lambda batch: actor_saturation(cfg, actor, batch)) if td3 else None,
         gradient_steps=gradient_steps,

@@ -607,6 +607,11 @@ def make_losses(cfg: DictConfig, actor, critic, discriminator, action_spec):
     return loss, updater, scheduler, make_discriminator_loss(cfg, discriminator)
 
 
+def actor_lr(cfg: DictConfig) -> float:
+    """The actor's learning rate: ``optim.actor_lr``, or ``optim.lr`` (the critic's) where it is null."""
+    return cfg.optim.lr if cfg.optim.actor_lr is None else cfg.optim.actor_lr
+
+
 def make_optimizers(cfg: DictConfig, loss, discriminator, rnd: RNDReward | None = None) -> dict:
     # fused Adam: one kernel for all parameters of a network (CPU and CUDA).
     adam = partial(torch.optim.Adam, fused=True)
@@ -618,7 +623,7 @@ def make_optimizers(cfg: DictConfig, loss, discriminator, rnd: RNDReward | None 
     optimizers = {
         # convert_to_functional re-samples and stacks the twin Q params: optimise the loss's copy.
         "critic": td3_adam(loss.qvalue_network_params.flatten_keys().values(), lr=cfg.optim.lr, weight_decay=l2),
-        "actor": td3_adam(loss.actor_network_params.flatten_keys().values(), lr=cfg.optim.lr, weight_decay=l2),
+        "actor": td3_adam(loss.actor_network_params.flatten_keys().values(), lr=actor_lr(cfg), weight_decay=l2),
         "discriminator": adam(discriminator.parameters(), lr=cfg.optim.discriminator.lr),
     }
     if rnd is not None:

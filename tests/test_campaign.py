@@ -479,22 +479,27 @@ def test_average_stage_tunes_the_averaged_actors_memory_on_tuning_seeds(tmp_path
     )
 
 
-def test_remedies_stage_tunes_two_remedies_of_the_falls_beside_the_average_stages_runs(tmp_path, capsys):
-    """The critic's LayerNorm and the authors' FIFO ring, each with the candidate, on the average
-    stage's seeds and teachers (its runs train the candidate alone on them: the baseline), seed by seed."""
+def test_remedies_stage_tunes_three_remedies_of_the_falls_beside_the_average_stages_runs(tmp_path, capsys):
+    """The critic's LayerNorm, the authors' FIFO ring and the actor's lr at 3e-4, each with the candidate,
+    on the average stage's seeds and teachers (its runs train the candidate alone on them: the
+    baseline), seed by seed."""
     cells = [c for c in campaign.plan() if c.stage == "remedies"]
     average = [c for c in campaign.plan() if c.stage == "average"]
-    assert len(cells) == 16 and len(set(cells)) == 16
+    assert len(cells) == 24 and len(set(cells)) == 24
     assert {(c.env, c.teacher.split("-")[0], c.seed) for c in cells} == {
         (c.env, c.teacher.split("-")[0], c.seed) for c in average
     }
-    assert [c.seed for c in cells] == [seed for seed in (100, 101, 102, 103) for _ in range(4)]
+    assert [c.seed for c in cells] == [seed for seed in (100, 101, 102, 103) for _ in range(6)]
     for cell in cells:
         remedy = cell.teacher.rsplit("-", 1)[1]
         assert cell.teacher == f"{'paper' if cell.env == 'Hopper-v4' else 'shipped'}-trusted-{remedy}"
         assert cell.overrides == (
             *campaign.TRUSTED,
-            {"ln": "network.critic_layer_norm=true", "fifo": "teacher.eviction=fifo"}[remedy],
+            {
+                "ln": "network.critic_layer_norm=true",
+                "fifo": "teacher.eviction=fifo",
+                "actor_lr": "optim.actor_lr=0.0003",
+            }[remedy],
         )
     teachers = tmp_path / "teachers"
     teachers.mkdir()
@@ -503,8 +508,9 @@ def test_remedies_stage_tunes_two_remedies_of_the_falls_beside_the_average_stage
     args = ["--teachers-dir", str(teachers), "--out", str(out), "--stages", "remedies", "--seeds", "100", "--dry-run"]
     assert campaign.main(args) == 0
     lines = capsys.readouterr().out.splitlines()
-    assert len(lines) == 4 and f"teacher.path={teachers / campaign.PAPER_TEACHERS['Hopper-v4']}" in lines[0]
+    assert len(lines) == 6 and f"teacher.path={teachers / campaign.PAPER_TEACHERS['Hopper-v4']}" in lines[0]
     assert "network.critic_layer_norm=true" in lines[0] and "teacher.eviction=fifo" in lines[3]
+    assert "optim.actor_lr=0.0003" in lines[4] and "-trusted-actor_lr" in lines[5]
     assert "teacher.path=" not in lines[3] and lines[3].endswith(
         f"hydra.run.dir={out / 'remedies' / 'shipped-trusted-fifo' / 'Walker2d-v4' / 'sail' / 'seed100'}"
     )

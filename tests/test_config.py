@@ -565,6 +565,34 @@ def test_sac_temperature_fixed_as_the_authors_or_learned(fixed):
     assert isinstance(loss.log_alpha, torch.nn.Parameter) is (not fixed) and ("alpha" in optimizers) is (not fixed)
 
 
+def test_actor_lr_sets_the_actors_adam_alone_and_its_decay_starts_from_it():
+    """optim.actor_lr=3e-4: the actor's Adam at 3e-4, the critic's at optim.lr (1e-3); null: both at
+    optim.lr. With optim.actor_lr_decay (rate 0.5 every 1000 frames) the decay starts from the actor's
+    rate: 3e-4 * 0.5 ** 2 = 7.5e-5 at 2500 frames."""
+    from loop import ActorLRDecay
+    from utils import actor_lr, make_agent, make_discriminator, make_losses, make_optimizers
+
+    from torchrl_sail import make_sail_env
+
+    env = make_sail_env("Pendulum-v1", max_episode_steps=200)
+    for overrides, expected in (((), 1e-3), (("optim.actor_lr=3e-4",), 3e-4)):
+        cfg = make("algo=sail", *overrides)
+        check_config(cfg)
+        actor, critic, _ = make_agent(cfg, env)
+        discriminator = make_discriminator(cfg, env)
+        optimizers = make_optimizers(
+            cfg, make_losses(cfg, actor, critic, discriminator, env.action_spec)[0], discriminator
+        )
+        assert [group["lr"] for group in optimizers["actor"].param_groups] == [expected]
+        assert [group["lr"] for group in optimizers["critic"].param_groups] == [1e-3]
+        assert actor_lr(cfg) == expected
+    decay = ActorLRDecay(optimizers["actor"], actor_lr(cfg), rate=0.5, every_frames=1000)
+    assert decay(2500) == {"sail/actor_lr": pytest.approx(7.5e-5)}
+    assert optimizers["actor"].param_groups[0]["lr"] == pytest.approx(7.5e-5)
+    with pytest.raises(ValueError, match=r"optim.actor_lr=0.0: must be > 0 or null"):
+        check_config(make("algo=sail", "optim.actor_lr=0"))
+
+
 def test_sac_temperature_must_be_positive():
     with pytest.raises(ValueError, match=r"algo.sac.alpha_init=0.0: must be a finite number > 0"):
         check_config(make("algo=sail_sac", "algo.sac.alpha_init=0"))

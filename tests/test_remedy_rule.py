@@ -78,31 +78,34 @@ def full_set(root, returns=None, skip=(), config=None, averaged=None):
 
 
 def test_the_remedy_with_the_lowest_fall_share_goes_on_when_it_meets_every_criterion(tmp_path):
-    """The candidate falls 8 times in 32 counted evaluations (25%: a remedy may have 12.5%); ln never
-    falls; fifo falls once (1/32 = 3.1%): both meet every criterion, and ln's share is the lower. An
-    average-stage config that predates network.critic_layer_norm reads as False."""
+    """The candidate falls 8 times in 32 counted evaluations (25%: a remedy may have 12.5%); ln and fifo
+    fall once each (1/32 = 3.1%), actor_lr never: all three meet every criterion, and actor_lr's share
+    is the lowest. An average-stage config that predates network.critic_layer_norm and optim.actor_lr
+    reads as their values then (False, null)."""
     full_set(
         tmp_path,
-        returns={("fifo", "Hopper-v4", 100): FALLS_ONCE},
-        config={("candidate", "Hopper-v4", 100): {"network.critic_layer_norm": None}},
+        returns={("fifo", "Hopper-v4", 100): FALLS_ONCE, ("ln", "Walker2d-v4", 102): FALLS_ONCE},
+        config={("candidate", "Hopper-v4", 100): {"network.critic_layer_norm": None, "optim.actor_lr": None}},
     )
     text = rule.report([tmp_path])
-    assert "runs found: candidate 8, ln 8, fifo 8." in text
+    assert "runs found: candidate 8, ln 8, fifo 8, actor_lr 8." in text
     assert "| Hopper-v4 | paper (100.0) | candidate | 4 | 4 | 178.0 ± 0.0 | 25.0% (4/16) |" in text
     assert "| Hopper-v4 | paper (100.0) | fifo | 4 | 4 | 194.5 ± 11.0 | 6.2% (1/16) |" in text
-    assert "  - met: fall share 0.0% (0/32), at most 0.5 of the candidate's 25.0% (8/32), 12.5%" in text
-    assert "  - met: fall share 3.1% (1/32), at most 0.5 of the candidate's 25.0% (8/32), 12.5%" in text
+    assert "| Walker2d-v4 | shipped (100.0) | actor_lr | 4 | 4 | 200.0 ± 0.0 | 0.0% (0/16) |" in text
+    assert "- actor_lr:\n  - met: fall share 0.0% (0/32), at most 0.5 of the candidate's 25.0% (8/32), 12.5%" in text
+    assert "- ln:\n  - met: fall share 3.1% (1/32), at most 0.5 of the candidate's 25.0% (8/32), 12.5%" in text
     # the candidate's last-5 is 178 on every seed: std 0, so the floor is 178.0
     assert (
         "  - met: Walker2d-v4 (shipped teacher) last-5 200.0, not below the candidate's mean minus its std, 178.0"
         in text
     )
-    assert "**Choice: ln (the lowest fall share) goes on to a confirmation.**" in text
+    assert "**Choice: actor_lr (the lowest fall share) goes on to a confirmation.**" in text
 
 
 def test_none_goes_on_when_the_lowest_fall_share_misses_a_criterion(tmp_path):
     """ln's one run that never passes its teacher counts no evaluation: ln's share stays the lowest
-    (0/28) but it misses 'every run passes'; fifo (3.1%) meets all, yet the rule judges the lowest alone."""
+    (0/28, tied with actor_lr's 0/32 and first in campaign.REMEDIES) but it misses 'every run passes';
+    fifo (3.1%) and actor_lr meet all, yet the rule judges the lowest alone."""
     full_set(
         tmp_path,
         returns={("ln", "Walker2d-v4", 103): NEVER_PASSES, ("fifo", "Hopper-v4", 100): FALLS_ONCE},

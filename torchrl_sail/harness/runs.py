@@ -82,6 +82,7 @@ RESUME_MAY_CHANGE = (
     "optim.implementation",
     "optim.cudagraphs",
     "optim.lr",
+    "optim.actor_lr",
     "optim.discriminator.lr",
     "optim.actor_max_grad_norm",
     "algo.ppo.lr",
