@@ -13,9 +13,10 @@ SAIL's runs at 300k frames, seeds :data:`campaign.COMPARISON_SEEDS`. In the rule
 3. otherwise the 27 columns.
 
 DAC's runs of the stage are shown beside SAIL's and take no part in the choice. The choice is
-"not decided yet" until every SAIL run of the stage is finished. A run is refused, naming its folder, when
-its config was not run with its way's settings (:data:`WAYS`), when two runs claim the same cell, or
-when its evaluations cannot be read.
+"not decided yet" until every SAIL run of the stage is finished. A run is refused, naming its
+folder, when its config was not run with its way's settings (:data:`WAYS`), the rule's evaluations
+(``trusted_rule.EVALUATIONS``) and, for SAIL, its default (:data:`SAIL_DEFAULT`), when two runs
+claim the same cell, or when its evaluations cannot be read.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from aggregate import HEADLINE_EVALS, find_run_folders, load_run  # noqa: E402
 from campaign import COMPARISON_SEEDS, OTHER_TEACHERS  # noqa: E402
-from trusted_rule import FRAMES, Result, config_value, percent, rule_main, spread  # noqa: E402
+from trusted_rule import EVALUATIONS, FRAMES, Result, config_value, percent, rule_main, spread  # noqa: E402
 
 ENV = "Ant-v4"
 FILE = OTHER_TEACHERS[ENV]
@@ -46,15 +47,20 @@ COMMANDS = {
     "teacher.drop_columns=27-110 teacher.path=<teachers>/{file}",
 }
 DEFAULT_WAY = "paper-nocontact"  # step 3
+# SAIL's default, which the ant stage's SAIL runs train with (conf/algo/sail.yaml)
+SAIL_DEFAULT = {"optim.actor_preactivation_coef": 0.001, "eval.actor": "target"}
 
 
 def checked(run, way: str) -> list[tuple[int, float]]:
-    """The evaluations of ``run``, after checking that it ran ``way`` and that they can be read."""
-    for key, expected in WAYS[way].items():
+    """The evaluations of ``run``, after checking that it ran ``way`` (SAIL: with its default) and the
+    rule's evaluations, and that they can be read."""
+    expected = {**WAYS[way], **EVALUATIONS, **(SAIL_DEFAULT if run.method == "sail" else {})}
+    for key, wanted in expected.items():
         value = config_value(run.config, key)
-        if value != expected:
+        if value != wanted:
             raise ValueError(
-                f"{run.folder}: labelled {way}, but its config has {key}={value!r} where that way has {expected!r}"
+                f"{run.folder}: labelled {way}, but its config has {key}={value!r} where the rule reads "
+                f"{run.method} runs with {wanted!r}"
             )
     if run.teacher_return is None or not math.isfinite(run.teacher_return):
         raise ValueError(f"{run.folder / 'summary.json'}: teacher_return is {run.teacher_return!r}, not a number")

@@ -23,9 +23,10 @@ D's logit (``algo.reward.kind=airl``; ``<teacher>-logit``) on Swimmer and HalfCh
 results table), ``--stages average`` tunes an averaged
 actor (``eval.average_frames``) on tuning seeds 100-103, ``--stages hold`` reruns its Hopper runs
 with the teacher buffer held after its first refill (``algo.max_promoted=10``, 200k frames; labels
-``paper-average10k-hold``, ``paper-average30k-hold``), ``--stages remedies`` two remedies of the
+``paper-average10k-hold``, ``paper-average30k-hold``), ``--stages remedies`` three remedies of the
 falls with the candidate on the same seeds and teachers (``network.critic_layer_norm=true``,
-``teacher.eviction=fifo``; labels ``<teacher>-trusted-ln``, ``-fifo``); after the confirmation,
+``teacher.eviction=fifo``, ``optim.actor_lr=0.0003``; labels ``<teacher>-trusted-ln``, ``-fifo``,
+``-actor_lr``); after the confirmation,
 with the default it decided (:data:`AFTER_TRUSTED`),
 ``ant`` runs SAIL and DAC on Ant-v4 with the authors' Ant teacher as recorded (label ``paper``)
 and on the columns Ant-v4 reproduces (``paper-nocontact``), ``comparison`` the paper's other rows
@@ -135,7 +136,8 @@ AVERAGE_TEACHERS = (("Hopper-v4", "paper"), ("Walker2d-v4", "shipped"))
 # buffer's: falls came more often after the threshold's largest rises early in a run, a tendency,
 # benchmarks/results/hopper_falls/README.md; on Walker2d, 1e4, about the top-K buffer's size, with
 # the oldest rows evicted, not the worst), and the actor's learning rate at 3e-4 (the online actor's
-# falls follow TD3 blocks that moved it further than usual, benchmarks/results/trusted/falls.md).
+# falls follow TD3 blocks that moved it somewhat further than usual, benchmarks/results/trusted/falls.md,
+# a small effect and not seen before the target actor's).
 # Labels "<teacher>-trusted-<remedy>".
 REMEDIES = {
     "ln": ("network.critic_layer_norm=true",),
@@ -629,7 +631,7 @@ def main(argv: list[str] | None = None) -> int:
         "all); weak (SAIL with weak teachers), precision (fp32 against bf16: it needs bf16 hardware), preact "
         "(SAIL with the actor's pre-tanh penalty), centred (SAIL with its reward centred at D = 1/2), logit "
         "(SAIL with D's logit), average (an averaged actor's tuning), hold (the teacher buffer held at its "
-        "first refill), remedies (two remedies of the falls, tuned), ant (SAIL and DAC on Ant-v4), comparison "
+        "first refill), remedies (three remedies of the falls, tuned), ant (SAIL and DAC on Ant-v4), comparison "
         "(the paper's other rows) and table1 (SAIL at 1M) are never defaults",
     )
     parser.add_argument(

@@ -103,6 +103,11 @@ def averaged(run) -> Result:
             f"{run.folder}: labelled {run.teacher}, but its config has eval.average_frames={ran!r} where the "
             f"label names {memory}"
         )
+    if run.seed not in AVERAGE_SEEDS[memory]:
+        raise ValueError(
+            f"{run.folder}: labelled {run.teacher} on seed {run.seed}, not one of that memory's seeds "
+            f"{AVERAGE_SEEDS[memory]}"
+        )
     curve = sorted(dict(read_scalar(run.folder, AVERAGED_TAG)).items())
     teacher = run.teacher.removesuffix(f"-average{memory // 1000}k")
     return Result(run.env, teacher, run.seed, run.teacher_return, checked(run, "candidate", curve))

@@ -26,7 +26,8 @@ def write_run(root, way, seed, returns, method="sail", config=None):
     (root / "ant" / "matrix.json").write_text("{}")  # a campaign stage: labels are its teacher folders
     nested = {"env": {"name": "Ant-v4"}, "algo": {"name": method}, "seed": seed}
     nested |= {"collector": {"total_frames": 300_000}, "eval": {"episodes": 10, "every_frames": 10_000}}
-    for key, value in {**rule.WAYS[way], **(config or {})}.items():
+    default = rule.SAIL_DEFAULT if method == "sail" else {}
+    for key, value in {**rule.WAYS[way], **default, **(config or {})}.items():
         section, name = key.rsplit(".", 1)
         target = nested
         for part in section.split("."):
@@ -99,9 +100,13 @@ def test_not_decided_until_every_sail_run_and_refusals_name_the_folder(tmp_path)
     with pytest.raises(
         ValueError,
         match=r"seed1: labelled paper-nocontact, but its config has env.kwargs.use_contact_forces=True "
-        r"where that way has False",
+        r"where the rule reads sail runs with False",
     ):
         rule.report([wrong])
+    replaced = tmp_path / "replaced"  # a SAIL run with the replaced default
+    write_run(replaced, "paper", 0, PASSES, config={"eval.actor": "online"})
+    with pytest.raises(ValueError, match=r"seed0: labelled paper, but its config has eval.actor='online'"):
+        rule.report([replaced])
     twice = tmp_path / "twice"
     write_run(twice, "paper", 2, PASSES)
     write_run(twice / "copy", "paper", 2, PASSES)

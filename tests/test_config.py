@@ -567,28 +567,30 @@ def test_sac_temperature_fixed_as_the_authors_or_learned(fixed):
 
 def test_actor_lr_sets_the_actors_adam_alone_and_its_decay_starts_from_it():
     """optim.actor_lr=3e-4: the actor's Adam at 3e-4, the critic's at optim.lr (1e-3); null: both at
-    optim.lr. With optim.actor_lr_decay (rate 0.5 every 1000 frames) the decay starts from the actor's
-    rate: 3e-4 * 0.5 ** 2 = 7.5e-5 at 2500 frames."""
-    from loop import ActorLRDecay
-    from utils import actor_lr, make_agent, make_discriminator, make_losses, make_optimizers
+    optim.lr. With optim.actor_lr_decay (dac_published's, at rate 0.5 every 1000 frames) the TD3 block's
+    decay starts from the actor's rate: 3e-4 * 0.5 ** 2 = 7.5e-5 at 2500 frames."""
+    from loop import make_td3_block
+    from torchrl.objectives import SoftUpdate
+    from utils import make_agent, make_discriminator, make_losses, make_optimizers
 
     from torchrl_sail import make_sail_env
 
     env = make_sail_env("Pendulum-v1", max_episode_steps=200)
-    for overrides, expected in (((), 1e-3), (("optim.actor_lr=3e-4",), 3e-4)):
-        cfg = make("algo=sail", *overrides)
+    decay = ("algo=dac_published", "optim.actor_lr_decay.rate=0.5", "optim.actor_lr_decay.every_frames=1000")
+    for overrides, expected in ((decay, 1e-3), ((*decay, "optim.actor_lr=3e-4"), 3e-4)):
+        cfg = make(*overrides)
         check_config(cfg)
         actor, critic, _ = make_agent(cfg, env)
         discriminator = make_discriminator(cfg, env)
-        optimizers = make_optimizers(
-            cfg, make_losses(cfg, actor, critic, discriminator, env.action_spec)[0], discriminator
-        )
+        loss = make_losses(cfg, actor, critic, discriminator, env.action_spec)[0]
+        optimizers = make_optimizers(cfg, loss, discriminator)
         assert [group["lr"] for group in optimizers["actor"].param_groups] == [expected]
         assert [group["lr"] for group in optimizers["critic"].param_groups] == [1e-3]
-        assert actor_lr(cfg) == expected
-    decay = ActorLRDecay(optimizers["actor"], actor_lr(cfg), rate=0.5, every_frames=1000)
-    assert decay(2500) == {"sail/actor_lr": pytest.approx(7.5e-5)}
-    assert optimizers["actor"].param_groups[0]["lr"] == pytest.approx(7.5e-5)
+        targets = SoftUpdate(loss, tau=cfg.optim.tau)
+        block = make_td3_block(cfg, None, None, actor, loss, None, optimizers, gradient_steps=0, target_updater=targets)
+        assert block.lr_decay(2500) == {"sail/actor_lr": pytest.approx(expected / 4)}
+        assert optimizers["actor"].param_groups[0]["lr"] == pytest.approx(expected / 4)
+        assert optimizers["critic"].param_groups[0]["lr"] == 1e-3
     with pytest.raises(ValueError, match=r"optim.actor_lr=0.0: must be > 0 or null"):
         check_config(make("algo=sail", "optim.actor_lr=0"))
 

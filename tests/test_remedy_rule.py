@@ -189,7 +189,7 @@ def test_the_averaged_actor_stops_at_a_missed_criterion_and_waits_for_every_run(
     assert text.endswith("**Averaged actor: pending (the choice waits for every run).**")
 
 
-def test_an_average_run_whose_memory_is_not_its_labels_is_refused(tmp_path):
+def test_an_average_run_whose_memory_or_seed_is_not_its_labels_is_refused(tmp_path):
     full_set(tmp_path, config={("candidate", "Hopper-v4", 102): {"eval.average_frames": 10_000}})
     with pytest.raises(
         ValueError,
@@ -197,3 +197,12 @@ def test_an_average_run_whose_memory_is_not_its_labels_is_refused(tmp_path):
         r"eval.average_frames=10000 where the label names 30000",
     ):
         rule.report([tmp_path])
+    elsewhere = tmp_path / "elsewhere"
+    full_set(elsewhere, skip={("candidate", "Walker2d-v4", 101)})
+    folder = write_run(elsewhere / "moved", "candidate", "Walker2d-v4", "shipped", 101, HOLDS)
+    label = folder.parent.parent.parent
+    label.rename(label.with_name("shipped-average30k"))  # a 30k label on a 10k seed
+    config = folder.parents[3] / "shipped-average30k" / "Walker2d-v4" / "sail" / "seed101" / "config.yaml"
+    config.write_text(config.read_text().replace("average_frames: 10000", "average_frames: 30000"))
+    with pytest.raises(ValueError, match=r"labelled shipped-average30k on seed 101, not one of that memory's seeds"):
+        rule.report([elsewhere])
