@@ -1744,6 +1744,11 @@ def block_seeds(source: Source, target: Path) -> str:
     return "\n".join(lines)
 
 
+def ant_runs(source: Source) -> dict:
+    """The ant stage's runs of ``source``, read once for the two blocks made from them (``ant_rule.py``)."""
+    return source.once("ant-runs", lambda: sibling("ant_rule").ant_runs(source.roots))
+
+
 def block_trusted_rule(source: Source, target: Path) -> str:
     """The trusted-default decision rule applied to the runs (``trusted_rule.py``)."""
     return source.once("trusted-rule", lambda: sibling("trusted_rule").report(source.roots))
@@ -1958,8 +1963,8 @@ BLOCKS = {
     "campaign-variants": Block(block_variants),
     "campaign-seeds": Block(block_seeds),
     "trusted-rule": Block(block_trusted_rule),
-    "ant-rule": Block(lambda source, target: sibling("ant_rule").report(source.roots)),
-    "ant-choice": Block(lambda source, target: sibling("ant_rule").recommendation(source.roots)),
+    "ant-rule": Block(lambda source, target: sibling("ant_rule").report_of(ant_runs(source))),
+    "ant-choice": Block(lambda source, target: sibling("ant_rule").recommendation(ant_runs(source))),
     "hopper-falls": Block(block_falls),
     "random-policy": Block(block_random_policy),
     "shipped-teachers": Block(block_shipped_teachers),

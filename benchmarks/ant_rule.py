@@ -21,15 +21,23 @@ claim the same cell, or when its evaluations cannot be read.
 
 from __future__ import annotations
 
-import math
 import statistics
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from aggregate import HEADLINE_EVALS, find_run_folders, load_run  # noqa: E402
+from aggregate import find_run_folders, load_run  # noqa: E402
 from campaign import COMPARISON_SEEDS, OTHER_TEACHERS  # noqa: E402
-from trusted_rule import EVALUATIONS, FRAMES, Result, config_value, percent, rule_main, spread  # noqa: E402
+from trusted_rule import (  # noqa: E402
+    EVALUATIONS,
+    FRAMES,
+    Result,
+    percent,
+    readable,
+    refuse_unless_ran_with,
+    rule_main,
+    spread,
+)
 
 ENV = "Ant-v4"
 FILE = OTHER_TEACHERS[ENV]
@@ -55,18 +63,8 @@ def checked(run, way: str) -> list[tuple[int, float]]:
     """The evaluations of ``run``, after checking that it ran ``way`` (SAIL: with its default) and the
     rule's evaluations, and that they can be read."""
     expected = {**WAYS[way], **EVALUATIONS, **(SAIL_DEFAULT if run.method == "sail" else {})}
-    for key, wanted in expected.items():
-        value = config_value(run.config, key)
-        if value != wanted:
-            raise ValueError(
-                f"{run.folder}: labelled {way}, but its config has {key}={value!r} where the rule reads "
-                f"{run.method} runs with {wanted!r}"
-            )
-    if run.teacher_return is None or not math.isfinite(run.teacher_return):
-        raise ValueError(f"{run.folder / 'summary.json'}: teacher_return is {run.teacher_return!r}, not a number")
-    if len(run.curve) < HEADLINE_EVALS or not all(math.isfinite(value) for _, value in run.curve):
-        raise ValueError(f"{run.folder}: eval/return has fewer than {HEADLINE_EVALS} finite evaluations")
-    return run.curve
+    refuse_unless_ran_with(run, expected, f"labelled {way}", f"the rule reads {run.method} runs with")
+    return readable(run, run.curve, "eval/return")
 
 
 def ant_runs(roots: list[Path]) -> dict[tuple[str, str], dict[int, Result]]:
@@ -135,9 +133,9 @@ def choose(found: dict) -> tuple[str | None, str]:
     )
 
 
-def recommendation(roots: list[Path]) -> str:
-    """The way the rule picks, with its command, or that it is not decided yet."""
-    way, why = choose(ant_runs(roots))
+def recommendation(found: dict) -> str:
+    """The way the rule picks on ``found`` (:func:`ant_runs`), with its command, or that it is not decided yet."""
+    way, why = choose(found)
     if way is None:
         return f"**Recommended way: not decided yet ({why}).**"
     return "\n".join(
@@ -145,8 +143,8 @@ def recommendation(roots: list[Path]) -> str:
     )
 
 
-def report(roots: list[Path]) -> str:
-    found = ant_runs(roots)
+def report_of(found: dict) -> str:
+    """The table of ``found`` (:func:`ant_runs`) and the way the rule picks."""
     teacher = next((run.teacher_return for runs in found.values() for run in runs.values()), None)
     shown = f" (return {teacher:.1f})" if teacher is not None else ""
     lines = [
@@ -156,7 +154,11 @@ def report(roots: list[Path]) -> str:
         *table(found),
         "",
     ]
-    return "\n".join([*lines, recommendation(roots)])
+    return "\n".join([*lines, recommendation(found)])
+
+
+def report(roots: list[Path]) -> str:
+    return report_of(ant_runs(roots))
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -45,7 +45,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from aggregate import find_run_folders, load_run  # noqa: E402
 from campaign import AVERAGE_SEEDS, HOLD_FRAMES  # noqa: E402
-from trusted_rule import config_value, percent, rule_main  # noqa: E402
+from trusted_rule import percent, refuse_unless_ran_with, rule_main  # noqa: E402
 
 from torchrl_sail.harness import read_scalar  # noqa: E402
 
@@ -83,12 +83,7 @@ def label_of(teacher: str) -> tuple[str, int] | None:
 
 def arm_of(run, arm: str) -> Arm:
     expected = {**CANDIDATE, "algo.max_promoted": MAX_PROMOTED if arm == "hold" else None}
-    for key, value in expected.items():
-        if config_value(run.config, key) != value:
-            raise ValueError(
-                f"{run.folder}: counted as a {arm} run, but its config has {key}={config_value(run.config, key)!r} "
-                f"where the {arm} runs have {value!r}"
-            )
+    refuse_unless_ran_with(run, expected, f"counted as a {arm} run", f"the {arm} runs have")
     evals = {actor: sorted(dict(read_scalar(run.folder, tag)).items()) for actor, tag in ACTORS.items()}
     for actor, curve in evals.items():
         if not curve or not all(math.isfinite(value) for _, value in curve):

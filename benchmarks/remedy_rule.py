@@ -29,7 +29,7 @@ runs goes on (the shorter on a tie, as a tie between remedies goes to the first)
 
 A run is refused, naming its folder, when its config was not run with its setting's values
 (:data:`SETTINGS`), when two runs claim the same cell, or when its evaluations cannot be read
-(:func:`trusted_rule.checked_evals`'s checks).
+(:func:`trusted_rule.readable`'s checks).
 """
 
 from __future__ import annotations
@@ -40,9 +40,19 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from aggregate import HEADLINE_EVALS, find_run_folders, load_run  # noqa: E402
+from aggregate import find_run_folders, load_run  # noqa: E402
 from campaign import AVERAGE_SEEDS, AVERAGE_TEACHERS, REMEDIES, REMEDY_SEEDS  # noqa: E402
-from trusted_rule import EVALUATIONS, FRAMES, Result, config_value, percent, rule_main, spread  # noqa: E402
+from trusted_rule import (  # noqa: E402
+    EVALUATIONS,
+    FRAMES,
+    Result,
+    config_value,
+    percent,
+    readable,
+    refuse_unless_ran_with,
+    rule_main,
+    spread,
+)
 
 from torchrl_sail.harness import read_scalar  # noqa: E402
 
@@ -77,22 +87,14 @@ def memory_of(label: str) -> int | None:
 
 
 def checked(run, setting: str, curve: list[tuple[int, float]] | None = None) -> list[tuple[int, float]]:
-    """The target actor's evaluations of ``run`` (or ``curve``, another of its actors' evaluations),
-    after checking its setting and that they can be read."""
-    curve = run.curve if curve is None else curve
-    for key, expected in {**SETTINGS[setting], **EVALUATIONS}.items():
-        value = config_value(run.config, key)  # an older run's at what it ran with (trusted_rule.BEFORE_THE_KEY)
-        if value != expected:
-            raise ValueError(
-                f"{run.folder}: counted as a {setting} run, but its config has {key}={value!r} "
-                f"where the {setting} setting has {expected!r}"
-            )
-    if run.teacher_return is None or not math.isfinite(run.teacher_return):
-        raise ValueError(f"{run.folder / 'summary.json'}: teacher_return is {run.teacher_return!r}, not a number")
-    if len(curve) < HEADLINE_EVALS or not all(math.isfinite(value) for _, value in curve):
-        tag = "eval/return" if curve is run.curve else AVERAGED_TAG
-        raise ValueError(f"{run.folder}: {tag} has fewer than {HEADLINE_EVALS} finite evaluations")
-    return curve
+    """The target actor's evaluations of ``run`` (or ``curve``, its averaged actor's), after checking its
+    setting (an older run's missing key at what it ran with, ``trusted_rule.BEFORE_THE_KEY``) and that they
+    can be read."""
+    claim = f"counted as a {setting} run"
+    refuse_unless_ran_with(run, {**SETTINGS[setting], **EVALUATIONS}, claim, f"the {setting} setting has")
+    if curve is None:
+        return readable(run, run.curve, "eval/return")
+    return readable(run, curve, AVERAGED_TAG)
 
 
 def averaged(run) -> Result:

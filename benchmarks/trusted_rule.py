@@ -111,14 +111,26 @@ def config_value(config: dict, key: str):
     return value
 
 
+def refuse_unless_ran_with(run, expected: dict, claim: str, holder: str) -> None:
+    """Refuse ``run``, naming its folder, at the first key of ``expected`` its config has at another value:
+    ``"<folder>: <claim>, but its config has <key>=<value> where <holder> <expected>"``."""
+    for key, wanted in expected.items():
+        value = config_value(run.config, key)
+        if value != wanted:
+            raise ValueError(f"{run.folder}: {claim}, but its config has {key}={value!r} where {holder} {wanted!r}")
+
+
 def checked_evals(run, setting: str, evals: list[tuple[int, float]], tag: str) -> list[tuple[int, float]]:
     """``evals``, after checking that ``run`` was run with ``setting`` and that the rule can read them."""
-    for key, expected in {**SETTINGS[setting], **EVALUATIONS}.items():
-        if config_value(run.config, key) != expected:
-            raise ValueError(
-                f"{run.folder}: counted as a {setting} run, but its config has {key}="
-                f"{config_value(run.config, key)!r} where the {setting} setting has {expected!r}"
-            )
+    refuse_unless_ran_with(
+        run, {**SETTINGS[setting], **EVALUATIONS}, f"counted as a {setting} run", f"the {setting} setting has"
+    )
+    return readable(run, evals, tag)
+
+
+def readable(run, evals: list[tuple[int, float]], tag: str) -> list[tuple[int, float]]:
+    """``evals`` (``run``'s ``tag``), after checking that a rule can read them: the run's teacher return a
+    number, at least the five evaluations of last-5, every one finite."""
     if run.teacher_return is None or not math.isfinite(run.teacher_return):
         raise ValueError(f"{run.folder / 'summary.json'}: teacher_return is {run.teacher_return!r}, not a number")
     if len(evals) < HEADLINE_EVALS:

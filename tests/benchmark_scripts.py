@@ -20,3 +20,17 @@ def load_benchmark(name: str) -> ModuleType:
     sys.modules[module_name] = module  # dataclasses look their module up there
     spec.loader.exec_module(module)
     return module
+
+
+def nest(settings: dict, into: dict) -> dict:
+    """``into`` with each dotted key of ``settings`` (``"eval.actor": "target"``) set in its sections, as a
+    run's ``config.yaml`` holds it; a ``None`` value is left out (a key the run's config lacks)."""
+    for key, value in settings.items():
+        if value is None:
+            continue
+        *sections, name = key.split(".")
+        target = into
+        for part in sections:
+            target = target.setdefault(part, {})
+        target[name] = value
+    return into

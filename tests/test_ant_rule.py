@@ -7,7 +7,7 @@ import json
 
 import pytest
 import yaml
-from benchmark_scripts import load_benchmark
+from benchmark_scripts import load_benchmark, nest
 
 rule = load_benchmark("ant_rule")
 
@@ -27,12 +27,7 @@ def write_run(root, way, seed, returns, method="sail", config=None):
     nested = {"env": {"name": "Ant-v4"}, "algo": {"name": method}, "seed": seed}
     nested |= {"collector": {"total_frames": 300_000}, "eval": {"episodes": 10, "every_frames": 10_000}}
     default = rule.SAIL_DEFAULT if method == "sail" else {}
-    for key, value in {**rule.WAYS[way], **default, **(config or {})}.items():
-        section, name = key.rsplit(".", 1)
-        target = nested
-        for part in section.split("."):
-            target = target.setdefault(part, {})
-        target[name] = value
+    nest({**rule.WAYS[way], **default, **(config or {})}, nested)
     (folder / "config.yaml").write_text(yaml.safe_dump(nested))
     summary = {"env": "Ant-v4", "frames": 300_000, "total_frames": 300_000, "teacher_return": TEACHER}
     (folder / "summary.json").write_text(json.dumps(summary))
@@ -93,7 +88,10 @@ def test_not_decided_until_every_sail_run_and_refusals_name_the_folder(tmp_path)
     for seed in rule.COMPARISON_SEEDS:
         write_run(tmp_path, "paper", seed, PASSES)
     write_run(tmp_path, "paper-nocontact", 0, PASSES)
-    assert rule.recommendation([tmp_path]) == "**Recommended way: not decided yet (2 of SAIL's 6 runs missing).**"
+    assert (
+        rule.recommendation(rule.ant_runs([tmp_path]))
+        == "**Recommended way: not decided yet (2 of SAIL's 6 runs missing).**"
+    )
 
     wrong = tmp_path / "wrong"
     write_run(wrong, "paper-nocontact", 1, PASSES, config={"env.kwargs.use_contact_forces": True})

@@ -7,7 +7,7 @@ import json
 
 import pytest
 import yaml
-from benchmark_scripts import load_benchmark
+from benchmark_scripts import load_benchmark, nest
 
 rule = load_benchmark("remedy_rule")
 
@@ -35,14 +35,7 @@ def write_run(root, setting, env, teacher, seed, returns, config=None, averaged=
         values = {"eval.average_frames": 10_000 if seed < 102 else 30_000, **values}
     nested = {"env": {"name": env}, "algo": {"name": "sail"}, "seed": seed, "collector": {"total_frames": 300_000}}
     nested["eval"] = {"episodes": 10, "every_frames": 10_000}
-    for key, value in values.items():
-        if value is None:  # a key the run's config lacks
-            continue
-        section, name = key.rsplit(".", 1)
-        target = nested
-        for part in section.split("."):
-            target = target.setdefault(part, {})
-        target[name] = value
+    nest(values, nested)  # a None value: a key the run's config lacks
     (folder / "config.yaml").write_text(yaml.safe_dump(nested))
     summary = {"env": env, "frames": 300_000, "total_frames": 300_000, "teacher_return": TEACHER}
     (folder / "summary.json").write_text(json.dumps(summary))
