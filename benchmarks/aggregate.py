@@ -2102,6 +2102,10 @@ FALLS = {
         [CAMPAIGN / f"average/paper-average{memory}/Hopper-v4/sail/seed{seed}" for memory, seed in AVERAGE_RUNS],
         None,
     ),
+    "benchmarks/results/remedies/falls_average_walker2d.md": (
+        [CAMPAIGN / f"average/shipped-average{memory}/Walker2d-v4/sail/seed{seed}" for memory, seed in AVERAGE_RUNS],
+        None,
+    ),
     "benchmarks/results/hold/falls.md": (
         [CAMPAIGN / f"hold/paper-average{memory}-hold/Hopper-v4/sail/seed{seed}" for memory, seed in AVERAGE_RUNS],
         None,
