@@ -2127,13 +2127,15 @@ def source_of(folder: Path, sources: dict[Path, Source]) -> Source:
 
 def generated_files(sources: dict[Path, Source]) -> dict[str, Callable[[], str]]:
     """The whole files made from committed runs, by path (relative to the repository): the campaign's
-    report (``results.md``, ``results.csv``), the trusted-default rule and ``falls.py``'s tables
+    report (``results.md``, ``results.csv``), the trusted-default rule, the averaged actor's
+    confirmation (``averaged_rule.py``) and ``falls.py``'s tables
     (:data:`FALLS`, and the trusted-default runs' ``benchmarks/results/trusted/falls.md``)."""
     campaign = source_of(CAMPAIGN, sources)
     files = {
         str(CAMPAIGN / "report" / "results.md"): campaign.report,
         str(CAMPAIGN / "report" / "results.csv"): lambda: csv_text(rows(campaign.groups)),
         "benchmarks/results/trusted/rule.md": lambda: block_trusted_rule(campaign, Path("rule.md")) + "\n",
+        "benchmarks/results/averaged/rule.md": lambda: sibling("averaged_rule").report(campaign.roots) + "\n",
     }
     for path, (folders, teacher_return) in FALLS.items():
         files[path] = lambda folders=folders, given=teacher_return: (
@@ -2214,6 +2216,7 @@ def update_docs(check: bool = False) -> list[str]:
             if not path.is_file() or read_exact(path) != text:
                 stale.append(name)
                 if not check:
+                    path.parent.mkdir(parents=True, exist_ok=True)  # a rule's folder, before its runs
                     write_atomic(path, text)
         if not check:
             source_of(CAMPAIGN, sources).draw_curves()

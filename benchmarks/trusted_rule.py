@@ -203,23 +203,24 @@ def percent(falls: int, counted: int) -> str:
     return f"{100 * falls / counted:.1f}% ({falls}/{counted})" if counted else "n/a (0 counted)"
 
 
-def interim(ours: dict, defaults: dict, setting: str) -> list[str]:
-    """What the finished runs show so far, on the cells both ``setting`` and the defaults have: not the
-    verdict, which waits for every run, but its direction."""
+def interim(ours: dict, defaults: dict, setting: str, base: str = "the defaults") -> list[str]:
+    """What the finished runs show so far, on the cells both ``setting`` and ``base`` (``defaults``'
+    setting) have: not the verdict, which waits for every run, but its direction."""
     keys = sorted(set(ours) & set(defaults))
     if not keys:
         return []
+    of = base + ("'" if base.endswith("s") else "'s")
     above = sum(ours[key].last5 > defaults[key].last5 for key in keys)
     return [
         "",
         f"Interim, not the verdict: on the {len(keys)} (env, teacher, seed) cells both the {setting} "
-        "and the defaults have finished:",
+        f"and {base} have finished:",
         "",
-        f"- runs passing their teacher: {sum(ours[k].passed for k in keys)} against the defaults' "
+        f"- runs passing their teacher: {sum(ours[k].passed for k in keys)} against {of} "
         f"{sum(defaults[k].passed for k in keys)};",
-        f"- fall share on Hopper and Walker2d: {percent(*pooled_falls(ours, keys))} against the defaults' "
+        f"- fall share on Hopper and Walker2d: {percent(*pooled_falls(ours, keys))} against {of} "
         f"{percent(*pooled_falls(defaults, keys))};",
-        f"- last-5 above the defaults' on {above} of {len(keys)} cells.",
+        f"- last-5 above {of} on {above} of {len(keys)} cells.",
     ]
 
 
@@ -297,6 +298,34 @@ def not_awaited(
     return skipped
 
 
+def first_set(ours: dict, dac: dict, dac_missing: bool) -> list[tuple[str, bool | None]]:
+    """The first set's criteria on ``ours`` (every run of the setting in), each with whether it is met
+    (None: not judged, as DAC's runs are not all in)."""
+    passed = sum(r.passed for r in ours.values())
+    falls, counted = pooled_falls(ours)
+    share = falls / counted if counted else math.inf  # no evaluation after a pass: not met
+    criteria = [(f"every run passes its teacher: {passed} of {len(ours)}", passed == len(ours))]
+    for env in ENVS:
+        mean, _ = paper_mean(ours, env)
+        teacher = ours[env, "paper", 0].teacher_return
+        ratio = mean / teacher
+        criteria.append(
+            (
+                f"{env}: last-5 {mean:.1f} = {ratio:.2f} x the teacher ({teacher:.1f}), at least {MIN_VS_TEACHER[env]}",
+                ratio >= MIN_VS_TEACHER[env],
+            )
+        )
+    for env in ENVS:
+        if dac_missing:
+            criteria.append((f"{env}: last-5 above DAC's (DAC's runs are not all in)", None))
+            continue
+        mean, dac_mean = paper_mean(ours, env)[0], paper_mean(dac, env)[0]
+        criteria.append((f"{env}: last-5 {mean:.1f} above DAC's {dac_mean:.1f}", mean > dac_mean))
+    text = f"fall share on Hopper and Walker2d {percent(falls, counted)}, at most 5%"
+    criteria.append((text, share <= MAX_FALL_SHARE))
+    return criteria
+
+
 def judge(found: dict, setting: str) -> list[str]:
     """The rule on ``setting`` (``candidate`` or ``penalty``) against the defaults and DAC, as Markdown."""
     ours, defaults, dac = found[setting], found["defaults"], found["dac"]
@@ -327,25 +356,7 @@ def judge(found: dict, setting: str) -> list[str]:
     # no evaluation after a pass: the share is undefined, and a criterion on it is not met
     share = falls / counted if counted else math.inf
     default_share = default_falls / default_counted if default_counted else -math.inf
-    first, second = [], []
-    first.append((f"every run passes its teacher: {passed} of {len(ours)}", passed == len(ours)))
-    for env in ENVS:
-        mean, _ = paper_mean(ours, env)
-        teacher = ours[env, "paper", 0].teacher_return
-        ratio = mean / teacher
-        first.append(
-            (
-                f"{env}: last-5 {mean:.1f} = {ratio:.2f} x the teacher ({teacher:.1f}), at least {MIN_VS_TEACHER[env]}",
-                ratio >= MIN_VS_TEACHER[env],
-            )
-        )
-    for env in ENVS:
-        if missing["dac"]:  # None: not judged
-            first.append((f"{env}: last-5 above DAC's (DAC's runs are not all in)", None))
-            continue
-        mean, dac_mean = paper_mean(ours, env)[0], paper_mean(dac, env)[0]
-        first.append((f"{env}: last-5 {mean:.1f} above DAC's {dac_mean:.1f}", mean > dac_mean))
-    first.append((f"fall share on Hopper and Walker2d {percent(falls, counted)}, at most 5%", share <= MAX_FALL_SHARE))
+    first, second = first_set(ours, dac, bool(missing["dac"])), []
     if missing["defaults"]:  # their runs not in cannot change this count (not_awaited)
         most = default_passed + len(missing["defaults"])
         text = f"runs passing: {passed} against the defaults' {default_passed}, at most {most} with their "
@@ -366,12 +377,16 @@ def judge(found: dict, setting: str) -> list[str]:
             share <= default_share,
         )
     )
-    for title, criteria in (("First set", first), ("Second set", second)):
-        marks = {True: "met", False: "MISSED", None: "not judged"}
-        lines += [f"{title}:", ""] + [f"- {marks[ok]}: {text}" for text, ok in criteria] + [""]
+    lines += [*criteria_lines("First set", first), *criteria_lines("Second set", second)]
     met_first, met_second = all(ok for _, ok in first), all(ok for _, ok in second)
     verdict = "meets the first set" if met_first else "meets the second set" if met_second else "meets neither set"
     return [*lines, f"**Verdict: {setting} {verdict}.**", ""]
+
+
+def criteria_lines(title: str, criteria: list[tuple[str, bool | None]]) -> list[str]:
+    """A set of criteria as a Markdown list, each marked met, MISSED or not judged (None)."""
+    marks = {True: "met", False: "MISSED", None: "not judged"}
+    return [f"{title}:", "", *(f"- {marks[ok]}: {text}" for text, ok in criteria), ""]
 
 
 def verdict(lines: list[str]) -> str:
@@ -401,14 +416,14 @@ def spread(values: list[float]) -> str:
     return f"{statistics.fmean(values):.1f}{std}"
 
 
-def table(found: dict) -> list[str]:
+def table(found: dict, keeps_none: str = "the penalty alone") -> list[str]:
     """One row per env, teacher (its return) and setting: the seeds finished so far, how many passed
     their teacher, last-5, the best policy and the fall share pooled over those seeds. The penalty
     alone keeps no best policy (its actor is not the one kept); DAC runs with the paper's teachers only."""
     lines = [
         "Per env, teacher and setting, over the seeds finished so far: how many passed their teacher; the "
         "mean ± sample std of each run's last-5 and of its best policy (50 episodes, kept by the SAIL "
-        "authors' rule; not part of the rule; `-` where the setting keeps none, as the penalty alone, or "
+        f"authors' rule; not part of the rule; `-` where the setting keeps none, as {keeps_none}, or "
         "its runs predate it, with how many seeds have one where only some do); and the fall share pooled "
         "over those seeds (the rule counts falls on Hopper and Walker2d only, pooled over both teachers).",
         "",

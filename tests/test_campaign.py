@@ -44,10 +44,11 @@ def test_plan_fills_the_table_seed_0_first():
         "trusted": 8,
         "average": 9,
         "hold": 10,
-        "remedies": 11,
-        "ant": 12,
-        "comparison": 13,
-        "table1": 14,
+        "averaged": 11,
+        "remedies": 12,
+        "ant": 13,
+        "comparison": 14,
+        "table1": 15,
     }
     stages = [order[c.stage] for c in cells]
     assert stages == sorted(stages)
@@ -304,6 +305,7 @@ def test_matrix_records_every_stage_and_label(tmp_path, monkeypatch):
         "logit",
         "average",
         "hold",
+        "averaged",
         "remedies",
         "ant",
         "comparison",
@@ -514,6 +516,41 @@ def test_remedies_stage_tunes_three_remedies_of_the_falls_beside_the_average_sta
     assert "teacher.path=" not in lines[3] and lines[3].endswith(
         f"hydra.run.dir={out / 'remedies' / 'shipped-trusted-fifo' / 'Walker2d-v4' / 'sail' / 'seed100'}"
     )
+
+
+def test_averaged_stage_reruns_the_trusted_candidate_runs_with_the_averaged_actor_shipped(tmp_path, capsys):
+    """The trusted stage's 40 candidate cells (seeds 0-4, the eight teachers, in its order), the averaged
+    actor at the chosen memory evaluated and shipped, the other actors beside it."""
+    plan = campaign.plan()
+    cells = [c for c in plan if c.stage == "averaged"]
+    trusted = [c for c in plan if c.stage == "trusted" and c.teacher.endswith("-trusted")]
+    assert len(cells) == 40 and len(set(cells)) == 40
+    assert [(c.env, c.seed, c.frames) for c in cells] == [(c.env, c.seed, c.frames) for c in trusted]
+    assert [c.teacher.removesuffix("-averaged") for c in cells] == [c.teacher.removesuffix("-trusted") for c in trusted]
+    memory = campaign.AVERAGED_MEMORY
+    assert all(
+        c.overrides
+        == (
+            "optim.actor_preactivation_coef=0.001",
+            "eval.actor=average",
+            "eval.other_actor=true",
+            f"eval.average_frames={memory}",
+        )
+        for c in cells
+    )
+    teachers = tmp_path / "teachers"
+    teachers.mkdir()
+    for name in campaign.PAPER_TEACHERS.values():
+        (teachers / name).touch()
+    out = tmp_path / "out"
+    args = ["--teachers-dir", str(teachers), "--out", str(out), "--stages", "averaged", "--seeds", "0", "--dry-run"]
+    assert campaign.main(args) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 8 and "teacher.path=" not in lines[0]  # the shipped Swimmer teacher first
+    folder = out / "averaged" / "paper-averaged" / "HalfCheetah-v4" / "sail" / "seed0"
+    assert lines[1].endswith(f"hydra.run.dir={folder}")
+    assert f"teacher.path={teachers / campaign.PAPER_TEACHERS['HalfCheetah-v4']}" in lines[1]
+    assert "eval.actor=average" in lines[1] and f"eval.average_frames={memory}" in lines[1]
 
 
 def test_hold_stage_reruns_the_average_stages_hopper_runs_with_the_teacher_buffer_held():
