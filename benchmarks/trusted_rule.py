@@ -113,11 +113,19 @@ def config_value(config: dict, key: str):
 
 def refuse_unless_ran_with(run, expected: dict, claim: str, holder: str) -> None:
     """Refuse ``run``, naming its folder, at the first key of ``expected`` its config has at another value:
-    ``"<folder>: <claim>, but its config has <key>=<value> where <holder> <expected>"``."""
+    ``"<folder>: <claim>, but its config has <key>=<value> where <holder> <expected>"``; or that a resume
+    changed (its ``summary.json``'s ``resumes``), as its frames before and after ran with two settings."""
     for key, wanted in expected.items():
         value = config_value(run.config, key)
         if value != wanted:
             raise ValueError(f"{run.folder}: {claim}, but its config has {key}={value!r} where {holder} {wanted!r}")
+    for resume in (run.summary or {}).get("resumes") or []:
+        for key, (before, after) in resume.get("changes", {}).items():
+            if key in expected:
+                raise ValueError(
+                    f"{run.folder}: {claim}, but it was resumed at frame {resume['frames']} with {key} changed "
+                    f"from {before!r} to {after!r}: it ran with two settings"
+                )
 
 
 def checked_evals(run, setting: str, evals: list[tuple[int, float]], tag: str) -> list[tuple[int, float]]:

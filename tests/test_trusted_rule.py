@@ -30,6 +30,7 @@ def write_run(
     best_policy=None,
     kept_at=None,
     config=None,
+    resumes=(),
 ):
     """A collected run folder under ``root/<stage>`` (a campaign stage): evaluations every 10k frames,
     10 episodes each; a ``*-trusted`` label is run with the candidate's settings, any other with a
@@ -48,6 +49,7 @@ def write_run(
     }
     (folder / "config.yaml").write_text(yaml.safe_dump(config))
     summary = {"env": env, "frames": frames, "total_frames": frames, "teacher_return": teacher}
+    summary["resumes"] = list(resumes)
     if best_policy is not None:
         summary["best_policy"] = {"eval_return": best_policy}
         if kept_at is not None:
@@ -420,6 +422,18 @@ def test_cells_whose_every_run_kept_its_best_policy_late(tmp_path):
         (  # fewer episodes per evaluation
             [("paper", "dac", {"eval": {"episodes": 5}})],
             r"counted as a dac run, but its config has eval.episodes=5 where the dac setting has 10",
+        ),
+        (  # a candidate run resumed with the online actor evaluated from 150k frames
+            [
+                (
+                    "paper-trusted",
+                    "sail",
+                    CANDIDATE,
+                    {"resumes": [{"frames": 150_000, "changes": {"eval.actor": ["target", "online"]}}]},
+                )
+            ],
+            r"paper-trusted/Hopper-v4/sail/seed0: counted as a candidate run, but it was resumed at frame 150000 "
+            r"with eval.actor changed from 'target' to 'online': it ran with two settings",
         ),
         (  # too few evaluations for a last-5
             [("paper", "sail", {}, {"returns": [50, 200, 200, 200]})],
