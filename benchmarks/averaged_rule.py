@@ -17,8 +17,10 @@ The averaged actor becomes the default if it meets the trusted rule's first set
 teacher; with no paper teacher is its last-5 mean below the target actor's by more than the target
 actor's sample standard deviation; and its fall share pooled over the Hopper and Walker2d runs of
 both teacher sets is at most :data:`MAX_SHARE_OF_TARGET` of the target actor's on the same runs.
-Otherwise the default stays. The decision is ``pending`` until every run that can change it is in
-(DAC's are not awaited once the first set is missed whatever the runs to come).
+Otherwise the default stays. The decision is ``pending`` until the runs to come cannot change it: a
+run that never passed its teacher decides it at once (both sets ask every run to pass), and DAC's runs,
+which count in the first set alone, are not awaited once every averaged run is in and the first set is
+out of reach or the second set met.
 
 A run is refused, naming its folder, when its config was not run with the confirmation's settings
 (:data:`SETTINGS`), when two runs claim the same cell, or when its evaluations cannot be read
@@ -52,10 +54,12 @@ from trusted_rule import (  # noqa: E402
     percent,
     pooled_falls,
     readable,
+    refuse_another_teacher,
     refuse_unless_ran_with,
     rule_main,
     table,
 )
+from trusted_rule import SETTINGS as TRUSTED_SETTINGS  # noqa: E402
 from trusted_rule import settings as trusted_settings  # noqa: E402
 
 from torchrl_sail.harness import read_scalar  # noqa: E402
@@ -63,20 +67,15 @@ from torchrl_sail.harness import read_scalar  # noqa: E402
 MAX_SHARE_OF_TARGET = 0.5
 SUFFIX = "-averaged"
 TARGET_TAG = "eval/return_target"
-# what the confirmation's runs were run with (campaign.AVERAGED)
-SETTINGS = {
-    "optim.actor_preactivation_coef": 0.001,
-    "eval.actor": "average",
-    "eval.other_actor": True,
-    "eval.average_frames": AVERAGED_MEMORY,
-}
+# what the confirmation's runs were run with (campaign.AVERAGED): the candidate's, the averaged actor shipped
+SETTINGS = {**TRUSTED_SETTINGS["candidate"], "eval.actor": "average", "eval.average_frames": AVERAGED_MEMORY}
 
 
 def confirmation_runs(roots: list[Path]) -> dict[str, dict[tuple[str, str, int], Result]]:
     """The averaged actor's and the target actor's figures of every finished confirmation run, and DAC's
     of the trusted rule, by (env, teacher, seed)."""
     found = {"averaged": {}, "target": {}}
-    folders = {}
+    folders, teachers = {}, {}
     for folder in find_run_folders(roots):
         run = load_run(folder)
         teacher = run.teacher.removesuffix(SUFFIX)
@@ -91,6 +90,7 @@ def confirmation_runs(roots: list[Path]) -> dict[str, dict[tuple[str, str, int],
         folders[key] = folder
         claim = "counted as an averaged-actor confirmation run"
         refuse_unless_ran_with(run, {**SETTINGS, **EVALUATIONS}, claim, "the confirmation has")
+        refuse_another_teacher(teachers, key, run)
         averaged = readable(run, run.curve, "eval/return")
         target = readable(run, sorted(dict(read_scalar(folder, TARGET_TAG)).items()), TARGET_TAG)
         kept = ((run.summary or {}).get("best_policy") or {}).get("frames")
@@ -126,17 +126,30 @@ def second_set(averaged: dict, target: dict) -> list[tuple[str, bool]]:
 
 
 def judge(found: dict) -> list[str]:
-    """The rule on the averaged actor, as Markdown, ending with the decision."""
+    """The rule on the averaged actor, as Markdown, ending with the decision: decided as soon as the runs
+    to come cannot change it (a run that never passed its teacher misses both sets; DAC's runs count in
+    the first set alone), else pending."""
     averaged, target, dac = found["averaged"], found["target"], found["dac"]
     missing = {name: [key for key in needed(name) if key not in found[name]] for name in ("averaged", "dac")}
     missed = out_of_reach(averaged, "averaged actor")
+    never = [key for key, run in sorted(averaged.items()) if not run.passed]
+    second = None if missing["averaged"] or never else second_set(averaged, target)
+    decided = bool(never) or (second is not None and (not missing["dac"] or missed or all(ok for _, ok in second)))
     lines = ["### The averaged actor", ""]
     if missing["averaged"]:
         lines.append(f"- averaged: {len(missing['averaged'])} runs missing ({cells(missing['averaged'])})")
     if missing["dac"]:
-        why = " (not needed for the decision: the first set is missed)" if missed else ""
+        why = " (not needed for the decision: it is decided without them)" if decided else ""
         lines.append(f"- dac: {len(missing['dac'])} runs missing ({cells(missing['dac'])}){why}")
-    if missing["averaged"] or (missing["dac"] and not missed):
+    if never:  # both sets ask every run to pass its teacher
+        return [
+            *lines,
+            *missed,
+            "",
+            "**Decision: the default stays**; `eval.actor=average` remains an option (a run never passed its "
+            f"teacher: {cells(never)}).",
+        ]
+    if not decided:
         return [
             *lines,
             *interim(averaged, target, "averaged actor", base="the target actor"),
@@ -144,7 +157,7 @@ def judge(found: dict) -> list[str]:
             "",
             "**Decision: pending** (it waits for every run it needs).",
         ]
-    first, second = first_set(averaged, dac, bool(missing["dac"])), second_set(averaged, target)
+    first = first_set(averaged, dac, bool(missing["dac"]))
     lines += [*missed, "", *criteria_lines("First set", first), *criteria_lines("Otherwise, all of", second)]
     if all(ok for _, ok in first):
         decision = "**Decision: the averaged actor becomes the default** (it meets the first set)."

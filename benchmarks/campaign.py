@@ -27,8 +27,8 @@ with the teacher buffer held after its first refill (``algo.max_promoted=10``, 2
 falls with the candidate on the same seeds and teachers (``network.critic_layer_norm=true``,
 ``teacher.eviction=fifo``, ``optim.actor_lr=0.0003``; labels ``<teacher>-trusted-ln``, ``-fifo``,
 ``-actor_lr``), ``--stages averaged`` the averaged actor's confirmation (the trusted stage's candidate
-runs again with ``eval.actor=average`` at :data:`AVERAGED_MEMORY`; labels ``<teacher>-averaged``); after
-the confirmation,
+runs again with ``eval.actor=average`` at :data:`AVERAGED_MEMORY`; labels ``<teacher>-averaged``; not
+the ``average`` stage, which tuned it); after the trusted-default confirmation,
 with the default it decided (:data:`AFTER_TRUSTED`),
 ``ant`` runs SAIL and DAC on Ant-v4 with the authors' Ant teacher as recorded (label ``paper``)
 and on the columns Ant-v4 reproduces (``paper-nocontact``), ``comparison`` the paper's other rows
@@ -153,9 +153,7 @@ REMEDY_SEEDS = (100, 101, 102, 103)
 # evaluated beside it on the same start states. Training is the candidate's. Labels "<teacher>-averaged".
 AVERAGED_MEMORY = 10_000
 AVERAGED = (
-    "optim.actor_preactivation_coef=0.001",
-    "eval.actor=average",
-    "eval.other_actor=true",
+    *(item.replace("eval.actor=target", "eval.actor=average") for item in TRUSTED),
     f"eval.average_frames={AVERAGED_MEMORY}",
 )
 # Whether the teacher buffer's change causes the falls: the average stage's Hopper runs again, with

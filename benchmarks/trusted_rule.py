@@ -149,6 +149,17 @@ def readable(run, evals: list[tuple[int, float]], tag: str) -> list[tuple[int, f
     return evals
 
 
+def refuse_another_teacher(teachers: dict, key: tuple[str, str, int], run) -> None:
+    """Refuse ``run`` if its teacher's return differs from the first one seen (``teachers``, by env and
+    teacher label, which this fills) for the same env and teacher label, naming both folders."""
+    first = teachers.setdefault(key[:2], (run.teacher_return, run.folder))
+    if abs(first[0] - run.teacher_return) > 1e-6 * max(1.0, abs(first[0])):
+        raise ValueError(
+            f"teacher return {first[0]} in {first[1]} but {run.teacher_return} in {run.folder}: "
+            f"the {key[1]} teacher of {key[0]} must be one file"
+        )
+
+
 def settings(roots: list[Path]) -> dict[str, dict[tuple[str, str, int], Result]]:
     """Every finished 300k run the rule reads, by setting and (env, teacher, seed), each checked
     (:func:`checked_evals`): two runs of one cell, or two teacher returns of one env and teacher, are
@@ -168,12 +179,7 @@ def settings(roots: list[Path]) -> dict[str, dict[tuple[str, str, int], Result]]
             raise ValueError(f"two {setting} runs of {key}: {folders[setting, key]} and {folder}")
         folders[setting, key] = folder
         evals = checked_evals(run, setting, run.curve, "eval/return")
-        first = teachers.setdefault(key[:2], (run.teacher_return, folder))
-        if abs(first[0] - run.teacher_return) > 1e-6 * max(1.0, abs(first[0])):
-            raise ValueError(
-                f"teacher return {first[0]} in {first[1]} but {run.teacher_return} in {folder}: "
-                f"the {key[1]} teacher of {key[0]} must be one file"
-            )
+        refuse_another_teacher(teachers, key, run)
         kept = ((run.summary or {}).get("best_policy") or {}).get("frames")
         found[setting][key] = Result(*key, run.teacher_return, evals, run.best_policy_return, kept)
         if setting == "candidate":

@@ -75,7 +75,7 @@ def test_second_set_met_when_halfcheetah_misses_its_bound(tmp_path):
     # runs do, so its seeds 3-4 are not awaited; the target actor's own mean is the floor (std 0)
     full_set(tmp_path, averaged=cheetah(LOW), target=cheetah(LOW), dac_seeds=(0, 1, 2))
     text = rule.report([tmp_path])
-    assert "- dac: 8 runs missing" in text and "(not needed for the decision: the first set is missed)" in text
+    assert "- dac: 8 runs missing" in text and "(not needed for the decision: it is decided without them)" in text
     assert "- MISSED: HalfCheetah-v4: last-5 110.0 = 1.10 x the teacher (100.0), at least 1.2" in text
     assert "- met: HalfCheetah-v4: last-5 110.0, not below the target actor's 110.0 - 0.0 = 110.0" in text
     assert text.endswith("**Decision: the averaged actor becomes the default** (it meets the second set of criteria).")
@@ -99,6 +99,42 @@ def test_default_stays_when_a_paper_teacher_mean_drops_more_than_a_std(tmp_path)
     text = rule.report([tmp_path])
     assert "- MISSED: Swimmer-v4: last-5 178.0, not below the target actor's 200.0 - 0.0 = 200.0" in text
     assert "(it misses a criterion)" in text
+
+
+def test_half_the_target_actors_fall_share_is_met_and_the_floor_uses_its_sample_std(tmp_path):
+    # falls: like the target actor on 10 of the 20 fall-env runs, 10/80 = 12.5%, exactly half of 25%.
+    # Swimmer with the paper's teacher: the target actor's last-5 200, 178, 200, 178, 200 over the seeds
+    # (mean 191.2, sample std 12.05: floor 179.15, shown 179.2); the averaged actor's 178 on every seed is below it,
+    # where a population std (10.78: floor 180.42) or the averaged actor's own std (0) would differ too
+    falls = {key: FALLS_ONCE for key in rule.needed("averaged") if key[0] in ("Hopper-v4", "Walker2d-v4")}
+    falls = dict(list(falls.items())[:10])
+    swimmer = {("Swimmer-v4", "paper", seed): FALLS_ONCE for seed in rule.SEEDS}
+    target = {("Swimmer-v4", "paper", seed): HOLDS if seed % 2 == 0 else FALLS_ONCE for seed in rule.SEEDS}
+    full_set(tmp_path, averaged={**falls, **swimmer, **cheetah(LOW)}, target={**target, **cheetah(LOW)})
+    text = rule.report([tmp_path])
+    assert "- met: fall share on Hopper and Walker2d 12.5% (10/80), at most 0.5 of the target actor's 25.0%" in text
+    assert "- MISSED: Swimmer-v4: last-5 178.0, not below the target actor's 191.2 - 12.0 = 179.2" in text
+
+
+def test_a_run_that_never_passed_decides_at_once(tmp_path):
+    never = [50, 60, 70, 80, 90, 95]
+    full_set(tmp_path, averaged={("Swimmer-v4", "shipped", 0): never}, skip=[("Hopper-v4", "paper", 4)])
+    text = rule.report([tmp_path])
+    assert "- averaged: 1 runs missing (Hopper-v4 paper seed 4)" in text
+    assert text.endswith(
+        "**Decision: the default stays**; `eval.actor=average` remains an option (a run never passed its "
+        "teacher: Swimmer-v4 shipped seed 0)."
+    )
+
+
+def test_waits_for_dac_where_only_the_first_set_can_decide(tmp_path):
+    # every averaged run in and the first set within reach, but the second set missed (Swimmer's mean
+    # below the target actor's floor): DAC's seeds 3-4 decide whether the first set is met
+    swimmer = {("Swimmer-v4", "paper", seed): FALLS_ONCE for seed in rule.SEEDS}
+    full_set(tmp_path, averaged=swimmer, target={k: HOLDS for k in swimmer}, dac_seeds=(0, 1, 2))
+    text = rule.report([tmp_path])
+    assert "- dac: 8 runs missing" in text and "not needed" not in text
+    assert text.endswith("**Decision: pending** (it waits for every run it needs).")
 
 
 def test_pending_until_every_run_is_in(tmp_path):
@@ -130,6 +166,15 @@ def test_refuses_a_run_at_another_memory(tmp_path):
 def test_refuses_a_run_without_the_target_actor_beside(tmp_path):
     folder = write_run(tmp_path, "averaged", "paper-averaged", "Hopper-v4", "sail", 0, HOLDS)
     with pytest.raises(ValueError, match=rf"{folder}: 0 eval/return_target evaluations, fewer than the 5"):
+        rule.report([tmp_path])
+
+
+def test_refuses_two_teacher_returns_of_one_env_and_teacher(tmp_path):
+    write_run(tmp_path, "averaged", "paper-averaged", "Hopper-v4", "sail", 0, HOLDS, FALLS_ONCE)
+    folder = write_run(tmp_path, "averaged", "paper-averaged", "Hopper-v4", "sail", 1, HOLDS, FALLS_ONCE)
+    summary = json.loads((folder / "summary.json").read_text())
+    (folder / "summary.json").write_text(json.dumps({**summary, "teacher_return": 120.0}))
+    with pytest.raises(ValueError, match=r"teacher return 100.0 in .*seed0 but 120.0 in .*seed1: the paper teacher"):
         rule.report([tmp_path])
 
 
