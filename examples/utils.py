@@ -568,8 +568,23 @@ class TeacherShare:
         self.alpha = alpha
 
 
+def twin_critics(cfg: DictConfig, critic, num_qvalue_nets: int = 2):
+    """The critics a loss trains. Given one critic, ``TD3Loss`` and ``SACLoss`` draw all
+    ``num_qvalue_nets`` anew, each weight uniform between the critic's smallest and largest: the law
+    of TorchRL's default and of Xavier's uniform draw, but about twice the spread of an orthogonal one.
+    So with ``network.actor_critic_init=orthogonal`` the loss gets a list: the critic and copies of it,
+    each drawn by that init."""
+    if cfg.network.actor_critic_init != "orthogonal":
+        return critic
+    copies = [copy.deepcopy(critic) for _ in range(num_qvalue_nets - 1)]
+    for copied in copies:
+        reset_linears(copied, "orthogonal")
+    return [critic, *copies]
+
+
 def make_losses(cfg: DictConfig, actor, critic, discriminator, action_spec):
     o, a = cfg.optim, cfg.algo.alpha
+    critic = twin_critics(cfg, critic)
     if cfg.algo.learner == "sac":
         loss = SACLoss(
             actor,

@@ -981,6 +981,47 @@ def test_actor_critic_init_is_the_layers_own_by_default_and_the_authors_glorot_o
         make("network.actor_critic_init=kaiming")
 
 
+def test_the_loss_trains_critics_drawn_by_the_orthogonal_init():
+    """TD3Loss given one critic redraws both twins uniformly between its extreme weights, about
+    twice an orthogonal draw's spread; algo=dac_published (orthogonal, as Kostrikov et al.'s release)
+    hands the loss two critics, each orthogonal: W^T W = I for a 400 x 16 first layer (Hopper's 11
+    observations, the time feature, the absorbing indicator and 3 actions), entries of std
+    1 / sqrt(400) = 0.05, zero biases, two different draws, and targets equal to them."""
+    import torch
+    from utils import make_agent, make_discriminator, make_env, make_losses
+
+    cfg = make("algo=dac_published", "env=Hopper-v4")
+    env = make_env(cfg, 0)
+    actor, critic, _ = make_agent(cfg, env)
+    loss = make_losses(cfg, actor, critic, make_discriminator(cfg, env), env.action_spec)[0]
+    params = loss.qvalue_network_params.flatten_keys()
+    targets = loss.target_qvalue_network_params.flatten_keys()
+    weights = [key for key in params.keys() if key.endswith("weight")]
+    assert [tuple(params[key].shape) for key in weights] == [(2, 400, 16), (2, 300, 400), (2, 1, 300)]
+    first = params[weights[0]].data
+    for twin in first:
+        torch.testing.assert_close(twin.T @ twin, torch.eye(16), atol=1e-5, rtol=0)
+    assert first.std().item() == pytest.approx(1 / math.sqrt(400), rel=0.02)
+    assert not torch.equal(first[0], first[1])
+    for key in params.keys():
+        assert torch.equal(params[key].data, targets[key].data)
+        if key.endswith("bias"):
+            assert not params[key].data.any()
+
+
+@pytest.mark.parametrize("version", ["v4", "v5"])
+def test_halfcheetah_action_noise_of_each_td3_method(version):
+    """SAIL's HalfCheetah runs without action noise (the authors' sail.yml); the TD3 baselines that
+    explore by it get the authors' DAC value 0.1 there (conf/algo_env), and elsewhere SAIL's."""
+    noise = {
+        algo: make(f"algo={algo}", f"env=HalfCheetah-{version}").env.exploration_noise
+        for algo in ("sail", "sail_rnd", "dac", "dac_published", "ddpgfd")
+    }
+    assert noise == {"sail": 0.0, "sail_rnd": 0.0, "dac": 0.1, "dac_published": 0.1, "ddpgfd": 0.1}
+    assert make("algo=ddpgfd", f"env=Walker2d-{version}").env.exploration_noise == 0.1
+    assert make("algo=ddpgfd", "env=Hopper-v4").env.exploration_noise == 0.2
+
+
 def test_reset_linears_refuses_an_unknown_init_by_name():
     from torch import nn
 
