@@ -77,7 +77,8 @@ class EnvConfig:
     replay_size: int = 1_000_000  # agent replay buffer R_B, transitions
     # teacher ring size in transitions for teacher.eviction=fifo (authors' demo_buffer_size)
     teacher_capacity: int = 100_000
-    # keyword arguments of gymnasium.make, added with Hydra's +: +env.kwargs.use_contact_forces=true (Ant-v4)
+    # keyword arguments of gymnasium.make: env.kwargs.<name>=<value> where the env file sets the key
+    # (Ant-v4's use_contact_forces), +env.kwargs.<name>=<value> where it does not
     kwargs: dict[str, Any] = field(default_factory=dict)
     # the trajectory-wise reward r_e, the agent's and the demonstrations': floor = the paper's
     # floor(0.1 R) | none = 0.1 R, so promotion compares returns as the authors' code does

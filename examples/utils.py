@@ -59,7 +59,7 @@ from torchrl_sail import (
 from torchrl_sail._compat import set_ray_weight_sync_timeout
 from torchrl_sail.data import keep_columns, parse_columns, unreproduced_columns
 from torchrl_sail.data.columns import column_ranges
-from torchrl_sail.data.paper_teachers import teacher_env
+from torchrl_sail.data.paper_teachers import reproduced_columns, teacher_env
 from torchrl_sail.modules.init import reset_linears
 
 # Teachers made by examples/make_teacher.py, one small dataset per env, shipped with the repo.
@@ -228,11 +228,20 @@ def select_teacher_columns(cfg: DictConfig, demos):
     those ``teacher.drop_columns`` names (both count the file's columns, the time feature included)."""
     t, width = cfg.teacher, demos["observation"].shape[-1]
     if t.keep_columns is not None:
-        return keep_columns(demos, parse_columns(t.keep_columns, width, key="teacher.keep_columns"))
-    if t.drop_columns is not None:
-        dropped = set(parse_columns(t.drop_columns, width, key="teacher.drop_columns"))
-        return keep_columns(demos, [column for column in range(width) if column not in dropped])
-    return demos
+        key, spec = "teacher.keep_columns", t.keep_columns
+        kept = parse_columns(spec, width, key=key)
+    elif t.drop_columns is not None:
+        key, spec = "teacher.drop_columns", t.drop_columns
+        dropped = set(parse_columns(spec, width, key=key))
+        kept = [column for column in range(width) if column not in dropped]
+    else:
+        return demos
+    if width - 1 not in kept:  # make_env appends the time feature: the demonstrations need theirs
+        raise ValueError(
+            f"{key}='{spec}' leaves out column {width - 1}, the time feature 1 - t/T (the file's last column, "
+            f"appended on loading where the file has none), which the env appends to its observations: keep it."
+        )
+    return keep_columns(demos, kept)
 
 
 def check_teacher_columns(cfg: DictConfig, teacher_observations: torch.Tensor, source) -> None:
@@ -272,16 +281,30 @@ def check_teacher_columns(cfg: DictConfig, teacher_observations: torch.Tensor, s
                 f"  columns {column_ranges([c['column'] for c in columns])}: {what} (column {columns[0]['column']}: "
                 f"teacher {t[0]:.3g} to {t[1]:.3g}, env {e[0]:.3g} to {e[1]:.3g})"
             )
-    published = teacher_env(Path(str(source)).name)
+    named = {c["column"] for c in found}
+    teacher_constant = teacher_observations.reshape(-1, width).amin(0) == teacher_observations.reshape(-1, width).amax(
+        0
+    )
+    env_constant = env_observations.amin(0) == env_observations.amax(0)
+    quiet = [c for c in range(width) if teacher_constant[c] and env_constant[c] and c not in named]
+    if quiet:  # a random rollout may leave still what an agent moves: the user sees the whole block
+        lines.append(
+            f"  columns {column_ranges(quiet)}: constant in the teacher and in this rollout too, which may part "
+            f"once the agent moves otherwise"
+        )
+    name = Path(str(source)).name
+    published = teacher_env(name)
     if published is not None and published[1]:
         lines.append(f"  (the authors' {published[0]} files: {published[1]})")
+    drop = reproduced_columns(name)
+    if drop is None:
+        drop = (
+            f"teacher.drop_columns='{column_ranges(sorted(named))}' and env.kwargs that make the env produce the "
+            f"columns kept (e.g. env.kwargs.use_contact_forces=false for Ant's contact forces)"
+        )
     lines.append(
-        "A random rollout shows these; columns constant in both may still part once the agent moves otherwise."
-    )
-    lines.append(
-        f"Choices: train as it is (teacher.column_check=off hides this, =error stops here), or drop them with "
-        f"teacher.drop_columns='{column_ranges([c['column'] for c in found])}' and make the env produce the columns "
-        f"kept (e.g. env.kwargs.use_contact_forces=false for Ant's contact forces)."
+        f"Choices: train as it is (teacher.column_check=off hides this, =error stops here), or train on the "
+        f"columns the env reproduces: {drop}."
     )
     message = "\n".join(lines)
     if cfg.teacher.column_check == "error":

@@ -142,3 +142,59 @@ def test_the_column_check_leaves_the_runs_random_stream_as_it_was(tmp_path):
     with pytest.warns(UserWarning):
         check_teacher_columns(cfg, torch.zeros(5, 12), path)
     assert torch.equal(torch.rand(3), expected)
+
+
+def test_the_time_feature_column_is_kept(tmp_path):
+    from utils import make_env, make_teacher
+
+    path = _hopper_teacher(tmp_path / "teacher.npz")
+    for setting, spec in (("drop_columns", "5-11"), ("keep_columns", "0-10")):
+        cfg = _make(f"teacher.path={path}", f"teacher.{setting}={spec}", "teacher.column_check=off")
+        with pytest.raises(ValueError, match=rf"teacher.{setting}='{spec}' leaves out column 11, the time feature"):
+            make_teacher(cfg, make_env(cfg, 0))
+
+
+def _ant_teacher(path, steps=60):
+    """A file named as the authors' Ant teacher, in its layout: Ant-v4's 27 columns, its 84 contact-force
+    columns (27-110) at 0.0 in every row, as mujoco-py 2.x recorded them, and the time feature."""
+    rng = np.random.default_rng(0)
+    t = np.arange(steps)
+    obs = np.concatenate([rng.normal(size=(steps, 27)), np.zeros((steps, 84)), (1 - t / 1000)[:, None]], axis=1)
+    starts = np.empty(steps, dtype=object)
+    starts[:] = [True] + [np.array([False])] * (steps - 1)
+    np.savez(
+        path,
+        obs=obs.astype("float32"),
+        actions=rng.uniform(-1, 1, size=(steps, 8)).astype("float32"),
+        rewards=np.ones((steps, 1), "float32"),
+        episode_returns=np.array([float(steps)]),
+        episode_starts=starts,
+    )
+    return path
+
+
+def test_the_ant_files_check_names_the_contact_forces_and_the_settings_that_drop_them(tmp_path):
+    """The 84 contact-force columns are named, those a random rollout leaves still among them too, and
+    the choice given is the one that loads: columns 27-110 dropped with the env's contact forces off."""
+    from test_config import make
+    from utils import make_env, make_teacher
+
+    path = _ant_teacher(tmp_path / "expert_data_no_img_Ant_scores_1200_episodes_1.npz")
+    cfg = make("env=Ant-v4", f"teacher.path={path}")
+    with pytest.warns(UserWarning, match=r"of its 112 observation columns are not what Ant-v4 produces") as record:
+        make_teacher(cfg, make_env(cfg, 0))
+    message = str(record[0].message)
+    named = [line.split(":")[0].split("columns ")[1] for line in message.splitlines() if line.startswith("  columns ")]
+    assert sorted(c for spec in named for c in parse_columns(spec, width=112)) == list(range(27, 111))
+    assert (
+        "train on the columns the env reproduces: teacher.drop_columns=27-110 env.kwargs.use_contact_forces=false."
+        in message
+    )
+    # that choice loads, and the check has nothing left to say
+    cfg = make(
+        "env=Ant-v4", f"teacher.path={path}", "teacher.drop_columns=27-110", "env.kwargs.use_contact_forces=false"
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        buffer, _, _ = make_teacher(cfg, make_env(cfg, 0))
+    assert buffer.sample(4)["observation"].shape == (4, 28)

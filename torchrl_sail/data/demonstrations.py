@@ -163,7 +163,8 @@ def _kwarg_hints(env_name: str | None, extra_dims: int) -> list[str]:
         elif dims == -extra_dims:  # this env has the setting, the teacher's did not
             hints.append(
                 f"{env_name} made with {kwarg}={value} has {dims:+d} observation dims: the env probably "
-                f"has it and the teacher did not; drop {kwarg} from env.kwargs"
+                f"has it and the teacher did not; make the env without it (config key env.kwargs: "
+                f"env.kwargs.{kwarg}={str(not value).lower()})"
             )
     return hints
 

@@ -13,7 +13,8 @@ tree at the pinned commit names it by), and written atomically (a temporary file
 destination folder, renamed into place once the checksum matches: a failed or corrupt download
 leaves nothing behind). Files already there with the right checksum are not downloaded again.
 :data:`TEACHER_ENVS` says which env each file loads into, with which settings
-(``conf/env/<env>.yaml``), and what of its recording the env does not reproduce.
+(``conf/env/<env>.yaml``), and what of its recording the env does not reproduce;
+:data:`REPRODUCED_COLUMNS`, how to train on the rest alone.
 
 The files go to a cache folder, :func:`paper_teachers_dir`: ``$TORCHRL_SAIL_TEACHERS`` if set,
 else ``$XDG_CACHE_HOME/torchrl_sail/teachers``, else ``~/.cache/torchrl_sail/teachers``.
@@ -47,6 +48,7 @@ __all__ = [
     "OTHER_TEACHERS",
     "PAPER_TEACHERS",
     "REFUSED_TEACHERS",
+    "REPRODUCED_COLUMNS",
     "TEACHER_ENVS",
     "PAPER_TEACHERS_COMMIT",
     "PAPER_TEACHERS_URL",
@@ -56,6 +58,7 @@ __all__ = [
     "missing_paper_teachers",
     "paper_teachers_dir",
     "refused_teacher",
+    "reproduced_columns",
     "teacher_env",
 ]
 
@@ -110,6 +113,11 @@ TEACHER_ENVS: dict[str, tuple[str, str]] = {
     ),
     "expert_data_no_img_Humanoid_scores_500": ("Humanoid-v4", ""),  # refused: REFUSED_TEACHERS
     "expert_data_no_img_Reacher_scores_-3.6": ("Reacher-v4", "episodes of 50 steps: the time feature is 1 - t/50"),
+}
+#: Per file-name prefix where the env does not reproduce some columns: the settings that train those
+#: files on the columns it does (``teacher.drop_columns`` and the env kwargs that make the env match).
+REPRODUCED_COLUMNS: dict[str, str] = {
+    "expert_data_no_img_Ant_scores_1200": "teacher.drop_columns=27-110 env.kwargs.use_contact_forces=false",
 }
 #: Per file-name prefix: why those files are refused on loading (no env reproduces their recording).
 REFUSED_TEACHERS: dict[str, str] = {
@@ -167,6 +175,18 @@ def teacher_env(name: str) -> tuple[str, str] | None:
         'Ant-v4'
     """
     return TEACHER_ENVS.get(name.rsplit("_episodes_", 1)[0])
+
+
+def reproduced_columns(name: str) -> str | None:
+    """The settings that train the published teacher file ``name`` on only the columns its env
+    reproduces (:data:`REPRODUCED_COLUMNS`), or ``None`` where there are none to drop or ``name`` is
+    another file.
+
+    Examples:
+        >>> reproduced_columns("expert_data_no_img_Ant_scores_1200_episodes_1.npz")
+        'teacher.drop_columns=27-110 env.kwargs.use_contact_forces=false'
+    """
+    return REPRODUCED_COLUMNS.get(name.rsplit("_episodes_", 1)[0])
 
 
 def refused_teacher(name: str) -> str | None:
