@@ -167,7 +167,8 @@ PAPER_TEACHER_RETURNS = {"HalfCheetah": 5646.71, "Swimmer": 121.16, "Hopper": 14
 # variants of SAIL (on-policy D, without LfD, without teacher adaptation), which the paper shows as
 # curves only
 TABLE1_ROWS = {"sail": "SAIL", "sail_rnd": "Curiosity Exploration", "sail_sac": "Entropy Exploration"}
-FIGURE2_ROWS = ("sail", "dac", "gail", "pofd", "ddpgfd", "bc")
+# (the paper's DAC: the SAIL authors' DAC, `dac`, and Kostrikov et al.'s release, `dac_published`)
+FIGURE2_ROWS = ("sail", "dac", "dac_published", "gail", "pofd", "ddpgfd", "bc")
 FIGURE34_ROWS = ("sail", "sail_onpolicy", "sail_no_lfd", "sail_no_adapt")
 HEADLINE_EVALS = 5  # the headline figure of a run: the mean of its last 5 evaluations
 HEADLINE = f"last{HEADLINE_EVALS}"  # its CSV column prefix
@@ -2043,6 +2044,7 @@ DOCUMENTS = {
     "docs/results.md": {
         "campaign": CAMPAIGN,
         "campaign-sail-vs-dac": CAMPAIGN,
+        "paper-comparison": CAMPAIGN,
         "campaign-teachers": CAMPAIGN,
         "campaign-variants": CAMPAIGN,
         "hopper-falls": Path("benchmarks/results/hopper_falls"),

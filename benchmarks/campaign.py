@@ -236,6 +236,19 @@ DIAGNOSTICS = (
     "actor/saturation",
     "actor/preactivation",
     "time/fps",
+    # each comparison method's own
+    "train/intrinsic_reward",
+    "rnd/loss_predictor",
+    "sail/temperature",
+    "sail/entropy",
+    "sail/teacher_share",
+    "sail/priority_weight_mean",
+    "sail/actor_lr",
+    "ppo/loss_objective",
+    "ppo/loss_critic",
+    "ppo/entropy",
+    "ppo/lr",
+    "pofd/lambda_1",
 )
 # what runs without --stages (the others are never defaults)
 DEFAULT_STAGES = ("main", "scale", "teachers", "buffer", "trusted")

@@ -118,7 +118,9 @@ class RewardConfig:
 class RNDConfig:
     """A random-network-distillation bonus (Burda et al. 2019) added to the reward (algo=sail_rnd)."""
 
-    coef: float = 1.0  # r = -log(1 - D) + coef * bonus (bonus / its running std, clipped at 5); ours
+    # r = -log(1 - D) + coef * bonus (bonus / its running std, clipped at 5): 0.01 is the ceiling of the
+    # SAIL authors' dormant schedule; at 1 the bonus (about 3 per step) outweighs D's reward (under 1)
+    coef: float = 0.01
     lr: float = 1.0e-4  # the predictor's Adam (RND's value)
     cells: list[int] = field(default_factory=lambda: [256, 256])  # target and predictor MLPs
     activation: Activation = Activation.relu  # of their hidden layers (RND's, and the SAIL authors' dormant code)

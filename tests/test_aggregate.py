@@ -870,6 +870,7 @@ def test_paper_comparison_lays_out_table1_figure2_and_figures34(tmp_path, monkey
         ("Swimmer-v4", "sail", 0, 1_000_000, 300.0),
         ("Hopper-v4", "sail_rnd", 0, 300_000, 1500.0),
         ("Hopper-v4", "dac", 0, 300_000, 1000.0),
+        ("Hopper-v4", "dac_published", 0, 300_000, 1100.0),
         ("Hopper-v4", "sail_onpolicy", 0, 300_000, 900.0),
     ):
         write_run(
@@ -896,6 +897,8 @@ def test_paper_comparison_lays_out_table1_figure2_and_figures34(tmp_path, monkey
     assert "| teacher | 120.0 | 1500.0 |" in table1 and "| teacher in the paper | 121.16 | 1480.69 |" in table1
     # the baselines and ablations where they ran (Hopper only), SAIL beside them, no paper rows
     assert "| | Hopper |\n" in figure2 and "| `dac`, 300k frames | 1000.0 (1 seed) |" in figure2
+    # both DACs, the SAIL authors' then Kostrikov et al.'s release
+    assert "| `dac`, 300k frames | 1000.0 (1 seed) |\n| `dac_published`, 300k frames | 1100.0 (1 seed) |" in figure2
     assert "| `sail`, 1M frames | 3200.0 ± 282.8 (2 seeds) |" in figure2 and "paper," not in figure2
     assert "| `sail_onpolicy`, 300k frames | 900.0 (1 seed) |" in figure34
     assert "gail" not in text  # no run, no row
@@ -916,7 +919,7 @@ def test_paper_comparison_lays_out_table1_figure2_and_figures34(tmp_path, monkey
     ]
     panels = sorted(drawn.values())  # one figure each, one Hopper panel each
     assert panels == [
-        [["dac", "sail (1M)", "sail (300k)"]],
+        [["dac", "dac_published", "sail (1M)", "sail (300k)"]],
         [["sail (1M)", "sail (300k)", "sail_onpolicy"]],
     ], panels
 
@@ -1143,7 +1146,8 @@ def test_changed_settings_are_the_overrides_from_what_the_method_composes_now():
     rnd.config = {"env": {"name": "Hopper-v4"}, "algo": {"name": "sail_rnd", "rnd": {"coef": 1.0}}}
     assert "algo.rnd.activation=tanh" in aggregate.changed_settings(rnd)
     rnd.config["algo"]["rnd"]["activation"] = "relu"
-    assert not any(s.startswith("algo.rnd") for s in aggregate.changed_settings(rnd))
+    # the bonus weight it ran with, 1, is no longer the method's (0.01)
+    assert [s for s in aggregate.changed_settings(rnd) if s.startswith("algo.rnd")] == ["algo.rnd.coef=1.0"]
     unknown_env = run("sail", optim={"lr": 0.5})
     unknown_env.env = "NoSuchEnv-v0"
     assert aggregate.changed_settings(unknown_env) == []  # nothing to compare with
