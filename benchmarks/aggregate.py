@@ -1568,6 +1568,14 @@ def link(path: Path, target: Path) -> str:
     return os.path.relpath(Path(path).resolve(), Path(target).resolve().parent)
 
 
+def figure_in(target: Path, caption: str, path: Path) -> str:
+    """The figure ``path`` in the Markdown file ``target``: an image, or, in a page of the docs site
+    (which cannot link outside ``docs/``), the figure's path in the repository."""
+    if Path(target).resolve().is_relative_to(REPO / "docs"):
+        return f"{caption}: `{Path(path).resolve().relative_to(REPO)}`."
+    return f"![{caption}]({link(path, target)})"
+
+
 def sibling(name: str):
     """The script ``benchmarks/<name>.py`` as a module (they import each other by their file names)."""
     if str(BENCHMARKS) not in sys.path:
@@ -1917,8 +1925,9 @@ def block_paper_comparison(source: Source, target: Path) -> str:
             rows_ = [
                 line for line in comparison_rows(groups, teacher, methods, {}, shown) if "in the paper" not in line
             ]
-            title, figure = f"**{caption}** (the paper: curves only).", link(paper_figure(source, name), target)
-            sections += ["", title, "", *table_header(shown), *rows_, "", f"![{caption}]({figure})"]
+            title = f"**{caption}** (the paper: curves only)."
+            curves = figure_in(target, caption, paper_figure(source, name))
+            sections += ["", title, "", *table_header(shown), *rows_, "", curves]
     return "\n".join(sections)
 
 

@@ -905,6 +905,14 @@ def test_paper_comparison_lays_out_table1_figure2_and_figures34(tmp_path, monkey
     # each figure's curves linked under its table, drawn from the runs of its methods only
     assert "![Figure 2's methods](out/paper_figure2_paper.png)" in figure2
     assert "![Figures 3 and 4's variants of SAIL](out/paper_figures34_paper.png)" in figure34
+    # a page of the docs site cannot link outside docs/: there, the figure's path in the repository
+    report = aggregate.REPO / "benchmarks" / "results" / "campaign" / "report" / "paper_figure2_paper.png"
+    assert aggregate.figure_in(aggregate.REPO / "docs" / "results.md", "curves", report) == (
+        "curves: `benchmarks/results/campaign/report/paper_figure2_paper.png`."
+    )
+    assert aggregate.figure_in(aggregate.REPO / "README.md", "curves", report) == (
+        "![curves](benchmarks/results/campaign/report/paper_figure2_paper.png)"
+    )
     drawn, draw_groups = {}, aggregate.draw_groups
 
     def recorded(ax, groups, colour_of):
