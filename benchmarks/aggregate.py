@@ -2013,6 +2013,7 @@ STUDIES = tuple(
         "reward_form_h200",
         "reward_level_cpu",
         "reward_shift_h200",
+        "rounding_cpu",
         "weak_swimmer_h200",
     )
 )

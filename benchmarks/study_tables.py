@@ -23,8 +23,8 @@ same name, and ``--check`` (``tests/test_generated_docs.py``) fails where one di
   ``-`` where the run logged none in a window.
 - ``runs``: ``{"columns": [...], "rows": [[section], [label, run], ...]}``: one row per run, its
   label then the columns named (:data:`RUN_COLUMNS`: every evaluation, last-5 and over the
-  teacher, final, best, passed at, the promotions (with the first's frame), the threshold C and the
-  frame alpha switched at, D's last accuracies, the share of D steps skipped, the last frame D
+  teacher, final, best, the best policy's evaluation (kept by the authors' rule), passed at, the
+  promotions (with the first's frame), the threshold C and the frame alpha switched at, D's last accuracies, the share of D steps skipped, the last frame D
   was saturated (both accuracies >= 0.98; ``never``) and the share of logged points it was, and
   the run's frames per second, from the run's summary; ``-`` where it has none); a row of one item
   starts a section of runs with one teacher, written with that teacher's return (their
@@ -267,6 +267,7 @@ RUN_COLUMNS = (
     "/ T",
     "final",
     "best",
+    "best policy",
     "passed at",
     "promoted (first at)",
     "promoted",
@@ -295,12 +296,14 @@ def runs_row(run: Run, label: str, columns: list[str], teacher: float) -> str:
     if discriminator and discriminator.get("last_saturated_frame") is None:
         saturated = "never"
     switched, threshold = summary.get("alpha_switched_at_frame"), summary.get("teacher_threshold")
+    best_policy = (summary.get("best_policy") or {}).get("eval_return")
     values = {
         "evaluations": lambda: ", ".join(f"{value:.0f}" for value in run.eval_returns),
         "last-5": lambda: f"{run.headline_return:.1f}",
         "/ T": lambda: f"{run.headline_return / teacher:.2f}",
         "final": lambda: f"{final_and_best(run)[0]:.1f}",
         "best": lambda: f"{final_and_best(run)[1]:.1f}",
+        "best policy": lambda: "-" if best_policy is None else f"{best_policy:.1f}",
         "passed at": lambda: passed,
         "promoted (first at)": lambda: promoted(run),
         "promoted": lambda: str(promotions(run)[0]),

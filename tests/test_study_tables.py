@@ -183,6 +183,7 @@ def test_runs_table_reads_the_summary(study):
         "teacher_threshold": 8.0,
         "alpha_switched_at_frame": 35_000,
         "frames_per_second": 401.6,
+        "best_policy": {"eval_return": 91.26},
         "discriminator": {
             "skipped_fraction": 0.574,
             "last_saturated_frame": 28_500,
@@ -195,7 +196,7 @@ def test_runs_table_reads_the_summary(study):
     never["discriminator"] = {"last_saturated_frame": None, "skipped_fraction": 0.0}
     (study / "d1" / "summary.json").write_text(json.dumps(never))
     spec = json.loads((study / "tables.json").read_text())
-    columns = ["last-5", "/ T", "final", "best", "promoted", "C at the end", "alpha switched at"]
+    columns = ["last-5", "/ T", "final", "best", "best policy", "promoted", "C at the end", "alpha switched at"]
     columns += [
         "D accuracy teacher / agent (last)",
         "D steps skipped",
@@ -207,11 +208,11 @@ def test_runs_table_reads_the_summary(study):
     spec["t-runs"] = {"kind": "runs", "columns": columns, "rows": rows_}
     (study / "tables.json").write_text(json.dumps(spec))
     # r: last-5 of its three evaluations 67.67, / 50 = 1.35; d2: no switch, no D record, nothing skipped;
-    # d1: a D record without a saturated point; last-5 (20+60+40+80+70)/5 = 54.0
+    # r's best policy is the summary's; d1: a D record without a saturated point; last-5 (20+60+40+80+70)/5 = 54.0
     assert rows(study_tables.render(study, "t-runs"))[1:] == [
-        "| r | 67.7 | 1.35 | 74.6 | 87.9 | 2 | 8 | 35k | 0.98 / 0.32 | 57% | 28.5k | 10% | 402 |",
-        "| d2 | 4.0 | 0.08 | 6.0 | 6.0 | 0 | - | - | - | - | - | - | - |",
-        "| d1 | 54.0 | 1.08 | 70.0 | 80.0 | 5 | - | - | - | 0% | never | - | - |",
+        "| r | 67.7 | 1.35 | 74.6 | 87.9 | 91.3 | 2 | 8 | 35k | 0.98 / 0.32 | 57% | 28.5k | 10% | 402 |",
+        "| d2 | 4.0 | 0.08 | 6.0 | 6.0 | - | 0 | - | - | - | - | - | - | - |",
+        "| d1 | 54.0 | 1.08 | 70.0 | 80.0 | - | 5 | - | - | - | 0% | never | - | - |",
     ]
 
 
