@@ -22,15 +22,15 @@ same name, and ``--check`` (``tests/test_generated_docs.py``) fails where one di
   / std), ``logit`` (D's mean logit on teacher / agent rows) and ``gp`` (the gradient penalty);
   ``-`` where the run logged none in a window.
 - ``runs``: ``{"columns": [...], "rows": [[section], [label, run], ...]}``: one row per run, its
-  label then the columns named (:data:`RUN_COLUMNS`: every evaluation, last-5 and over the
-  teacher, final, best, the best policy's evaluation (kept by the authors' rule), passed at, the
-  promotions (with the first's frame), the threshold C and the frame alpha switched at, D's last accuracies, the share of D steps skipped, the last frame D
-  was saturated (both accuracies >= 0.98; ``never``) and the share of logged points it was, and
-  the run's frames per second, from the run's summary; ``-`` where it has none); a row of one item
-  starts a section of runs with one teacher, written with that teacher's return (their
-  summaries'). A run cut short, without a ``summary.json``, is labelled with its last evaluation's
-  frame, passes the teacher at its first evaluation above the section's teacher return (written
-  beside it) and promoted what it logged.
+  label then the columns named (:data:`RUN_COLUMNS`: every evaluation, last-5 and over the teacher,
+  final, best, the best policy's evaluation (kept by the authors' rule), passed at, the promotions
+  (with the first's frame), the threshold C and the frame alpha switched at, D's last accuracies,
+  the share of D steps skipped, the last frame D was saturated (both accuracies >= 0.98; ``never``)
+  and the share of logged points it was, and the run's frames per second, from the run's summary;
+  ``-`` where it has none); a row of one item starts a section of runs with one teacher, written
+  with that teacher's return (their summaries'). A run cut short, without a ``summary.json``, is
+  labelled with its last evaluation's frame, passes the teacher at its first evaluation above the
+  section's teacher return (written beside it) and promoted what it logged.
 - ``evaluations``: ``{"first": frames, "last": frames, "header": [first column, run column, ...],
   "rows": [[label, run, ...], ...]}``: each run's evaluations from ``first`` to ``last`` frames,
   rounded to integers.
