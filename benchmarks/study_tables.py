@@ -296,14 +296,13 @@ def runs_row(run: Run, label: str, columns: list[str], teacher: float) -> str:
     if discriminator and discriminator.get("last_saturated_frame") is None:
         saturated = "never"
     switched, threshold = summary.get("alpha_switched_at_frame"), summary.get("teacher_threshold")
-    best_policy = (summary.get("best_policy") or {}).get("eval_return")
     values = {
         "evaluations": lambda: ", ".join(f"{value:.0f}" for value in run.eval_returns),
         "last-5": lambda: f"{run.headline_return:.1f}",
         "/ T": lambda: f"{run.headline_return / teacher:.2f}",
         "final": lambda: f"{final_and_best(run)[0]:.1f}",
         "best": lambda: f"{final_and_best(run)[1]:.1f}",
-        "best policy": lambda: "-" if best_policy is None else f"{best_policy:.1f}",
+        "best policy": lambda: "-" if run.best_policy_return is None else f"{run.best_policy_return:.1f}",
         "passed at": lambda: passed,
         "promoted (first at)": lambda: promoted(run),
         "promoted": lambda: str(promotions(run)[0]),
